@@ -1,0 +1,147 @@
+// softshock-solve --spec SPEC.json --out DIR [--threads N]
+// Runs one spec, writes DIR/result.h5 + DIR/result.xdmf, prints the JSON summary on stdout.
+// Exit codes: 0 success, 2 invalid spec or usage, 1 run failure (partial file kept, marked
+// incomplete).
+#include <unistd.h>
+
+#include <atomic>
+#include <chrono>
+#include <csignal>
+#include <cstdio>
+#include <cstring>
+#include <iostream>
+#include <string>
+
+#include "solver/io/result_file.hpp"
+#include "solver/run_spec.hpp"
+#include "solver/run_summary.hpp"
+#include "solver/simulation.hpp"
+
+namespace {
+
+std::atomic<bool> g_cancel{false};
+extern "C" void on_signal(int) { g_cancel.store(true); }
+
+int usage(const char* msg) {
+  if (msg) std::fprintf(stderr, "softshock-solve: %s\n", msg);
+  std::fprintf(stderr,
+               "usage: softshock-solve --spec SPEC.json --out DIR [--threads N] [--quiet]\n"
+               "  SPEC.json  run spec (protobuf JSON of softshock.v1.RunSpec; {} = baseline)\n"
+               "  DIR        output directory: result.h5, result.xdmf\n"
+               "exit codes: 0 success, 2 invalid spec or usage, 1 run failure\n");
+  return 2;
+}
+
+// Progress on stderr: a redrawn bar on a terminal, a plain line every 10 % otherwise.
+class ProgressReporter {
+ public:
+  explicit ProgressReporter(bool quiet) : quiet_(quiet), tty_(isatty(STDERR_FILENO)) {}
+  void operator()(const softshock::Progress& p) {
+    if (quiet_) return;
+    const auto now = std::chrono::steady_clock::now();
+    const double f = p.fraction();
+    if (tty_) {
+      if (now - last_ < std::chrono::milliseconds(200) && f < 1.0) return;
+      last_ = now;
+      const int width = 40, filled = static_cast<int>(f * width);
+      std::fprintf(stderr, "\r[%.*s%*s] %5.1f%%  t = %7.2f ns  step %lld  dt = %.3g ps ",
+                   filled, "########################################", width - filled, "",
+                   100 * f, p.time_s * 1e9, static_cast<long long>(p.steps), p.dt_s * 1e12);
+    } else {
+      const int decile = static_cast<int>(f * 10 + 1e-9);
+      if (decile <= last_decile_) return;
+      last_decile_ = decile;
+      std::fprintf(stderr, "progress %3d%%  t = %.2f ns  step %lld\n", decile * 10,
+                   p.time_s * 1e9, static_cast<long long>(p.steps));
+    }
+  }
+  void done() {
+    if (!quiet_ && tty_) std::fprintf(stderr, "\n");
+  }
+
+ private:
+  bool quiet_, tty_;
+  std::chrono::steady_clock::time_point last_{};
+  int last_decile_ = 0;
+};
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  std::string spec_path, out_dir;
+  int threads = 0;
+  bool quiet = false;
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    auto value = [&]() -> const char* { return i + 1 < argc ? argv[++i] : nullptr; };
+    if (a == "--spec") {
+      const char* v = value();
+      if (!v) return usage("--spec needs a file");
+      spec_path = v;
+    } else if (a == "--out") {
+      const char* v = value();
+      if (!v) return usage("--out needs a directory");
+      out_dir = v;
+    } else if (a == "--threads") {
+      const char* v = value();
+      if (!v) return usage("--threads needs a number");
+      try {
+        threads = std::stoi(v);
+      } catch (...) {
+        return usage("--threads: not a number");
+      }
+      if (threads < 1) return usage("--threads: must be >= 1");
+    } else if (a == "--quiet") {
+      quiet = true;
+    } else if (a == "--help" || a == "-h") {
+      usage(nullptr);
+      return 0;
+    } else {
+      return usage(("unknown argument '" + a + "'").c_str());
+    }
+  }
+  if (spec_path.empty() || out_dir.empty()) return usage("--spec and --out are required");
+
+  softshock::v1::RunSpec spec;
+  softshock::Problem problem;
+  try {
+    spec = softshock::read_spec_file(spec_path);
+    if (threads > 0) spec.mutable_run()->set_threads(threads);
+    spec = softshock::normalize_spec(spec);
+    problem = softshock::make_problem(spec);
+  } catch (const softshock::SpecError& e) {
+    std::fprintf(stderr, "softshock-solve: invalid spec: %s\n", e.what());
+    return 2;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "softshock-solve: %s\n", e.what());
+    return 1;
+  }
+
+  std::signal(SIGINT, on_signal);
+  std::signal(SIGTERM, on_signal);
+  try {
+    softshock::ResultWriter writer(out_dir, problem.mesh, softshock::spec_to_json(spec),
+                                   SOFTSHOCK_VERSION);
+    ProgressReporter reporter(quiet);
+    softshock::RunControl control;
+    control.cancel = &g_cancel;
+    control.on_progress = [&](const softshock::Progress& p) { reporter(p); };
+    control.on_frame = [&](const softshock::FieldFrame& f) { writer.write_frame(f); };
+    const auto result = softshock::run_simulation(problem, softshock::make_options(spec), control);
+    reporter.done();
+    const auto summary = softshock::summarize(problem, result);
+    const bool complete = result.status == softshock::RunStatus::kCompleted;
+    writer.finish(result.history, summary, complete, result.error);
+    std::cout << softshock::summary_to_json(summary) << std::endl;
+    if (!complete) {
+      std::fprintf(stderr, "softshock-solve: run %s: %s (partial result kept in %s)\n",
+                   summary.status.c_str(), result.error.empty() ? "interrupted" : result.error.c_str(),
+                   writer.h5_path().c_str());
+      return 1;
+    }
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "softshock-solve: %s\n", e.what());
+    return 1;
+  }
+  return 0;
+}

@@ -1,0 +1,105 @@
+// The constitutive law and element kinematics as small inline functions, shared by the element
+// kernel (hot loop) and the diagnostics so the physics is written once. 2x2 in-plane tensors
+// are stored row-major as {xx, xy, yx, yy}; plane strain: F_zz = 1.
+#pragma once
+
+#include <array>
+#include <cmath>
+
+namespace softshock::continuum {
+
+using Mat2 = std::array<double, 4>;
+
+// F = Ds * Dm^-1 with Ds = [x1 - x0, x2 - x0] (current edges), Dm^-1 precomputed.
+inline Mat2 deformation_gradient(double e1x, double e1y, double e2x, double e2y,
+                                 const Mat2& dm_inv) {
+  return {e1x * dm_inv[0] + e2x * dm_inv[2], e1x * dm_inv[1] + e2x * dm_inv[3],
+          e1y * dm_inv[0] + e2y * dm_inv[2], e1y * dm_inv[1] + e2y * dm_inv[3]};
+}
+
+inline double det(const Mat2& f) { return f[0] * f[3] - f[1] * f[2]; }
+
+// Cofactor J F^-T (in-plane block; the zz entry is J).
+inline Mat2 cofactor(const Mat2& f) { return {f[3], -f[2], -f[1], f[0]}; }
+
+// I1 = tr(F^T F) of the 3x3 plane-strain F (the out-of-plane 1 included).
+inline double first_invariant(const Mat2& f) {
+  return f[0] * f[0] + f[1] * f[1] + f[2] * f[2] + f[3] * f[3] + 1.0;
+}
+
+// Tait mean stress sigma_m(J) = (kappa/n)(1 - J^-n), tension positive; takes J^-n.
+inline double tait_mean_stress(double kappa, double n, double j_pow_minus_n) {
+  return kappa / n * (1.0 - j_pow_minus_n);
+}
+
+// Tait stored energy W_vol = (kappa/n)(J - 1 + (J^(1-n) - 1)/(n - 1)); takes J and J^-n.
+inline double tait_energy(double kappa, double n, double j, double j_pow_minus_n) {
+  return kappa / n * (j - 1.0 + (j * j_pow_minus_n - 1.0) / (n - 1.0));
+}
+
+// Tangent bulk modulus K(J) = kappa J^-n.
+inline double tait_bulk_modulus(double kappa, double j_pow_minus_n) { return kappa * j_pow_minus_n; }
+
+// Neo-Hookean deviatoric energy mu/2 (I1 J^-2/3 - 3).
+inline double neo_hookean_energy(double mu, double i1, double j_pow_minus_two_thirds) {
+  return 0.5 * mu * (i1 * j_pow_minus_two_thirds - 3.0);
+}
+
+// Elastic first Piola-Kirchhoff stress (in-plane block):
+// P = sigma_m cof(F) + mu J^-2/3 (F - I1/3 F^-T), with F^-T = cof(F) / J.
+inline Mat2 elastic_piola(const Mat2& f, const Mat2& cof, double j, double mean_stress,
+                          double mu, double j_pow_minus_two_thirds) {
+  const double a = mu * j_pow_minus_two_thirds;
+  const double s = mean_stress - a * first_invariant(f) / (3.0 * j);
+  return {s * cof[0] + a * f[0], s * cof[1] + a * f[1], s * cof[2] + a * f[2],
+          s * cof[3] + a * f[3]};
+}
+
+// Squared longitudinal wave speed c^2 = (K + 4 mu / 3) / rho, rho = rho0 / J.
+inline double longitudinal_speed_sq(double bulk_modulus, double mu, double rho0, double j) {
+  return (bulk_modulus + 4.0 / 3.0 * mu) * j / rho0;
+}
+
+// Squared smallest altitude of the current triangle: (2 A)^2 / (longest edge)^2, where
+// 2A = e1 x e2 (positive for a valid counter-clockwise element).
+inline double smallest_altitude_sq(double e1x, double e1y, double e2x, double e2y) {
+  const double twice_area = e1x * e2y - e1y * e2x;
+  const double l1 = e1x * e1x + e1y * e1y;
+  const double l2 = e2x * e2x + e2y * e2y;
+  const double l3 = (e2x - e1x) * (e2x - e1x) + (e2y - e1y) * (e2y - e1y);
+  const double lmax = std::fmax(l1, std::fmax(l2, l3));
+  return twice_area * twice_area / lmax;
+}
+
+// Viscous first Piola-Kirchhoff stress P_v = 2 J nu d_dev F^-T = 2 nu d_dev cof(F), with the
+// lagged velocity gradient l = ((F - F_prev) / dt) F_prev^-1, d = sym(l) and the 3x3
+// deviator (d_zz = 0, so d_dev = d - tr(d)/3 I). In-plane block only: the zz row gives no
+// nodal force in plane strain.
+inline Mat2 viscous_piola(const Mat2& f, const Mat2& f_prev, const Mat2& cof, double nu,
+                          double dt) {
+  const double jp = det(f_prev);
+  const double inv = 1.0 / (jp * dt);
+  // F_prev^-1 = cof(F_prev)^T / J_prev
+  const double pi00 = f_prev[3], pi01 = -f_prev[1], pi10 = -f_prev[2], pi11 = f_prev[0];
+  const double df0 = f[0] - f_prev[0], df1 = f[1] - f_prev[1], df2 = f[2] - f_prev[2],
+               df3 = f[3] - f_prev[3];
+  const double l00 = (df0 * pi00 + df1 * pi10) * inv;
+  const double l01 = (df0 * pi01 + df1 * pi11) * inv;
+  const double l10 = (df2 * pi00 + df3 * pi10) * inv;
+  const double l11 = (df2 * pi01 + df3 * pi11) * inv;
+  const double third_trace = (l00 + l11) / 3.0;
+  const double d00 = 2.0 * nu * (l00 - third_trace);
+  const double d11 = 2.0 * nu * (l11 - third_trace);
+  const double d01 = nu * (l01 + l10);
+  return {d00 * cof[0] + d01 * cof[2], d00 * cof[1] + d01 * cof[3],
+          d01 * cof[0] + d11 * cof[2], d01 * cof[1] + d11 * cof[3]};
+}
+
+// Artificial viscosity nu = 3/4 (h rho0 / J) (c2 a - c1 h ln(J/J_prev) / dt), applied only
+// while compressing (the caller checks J < J_prev, so the log term is positive).
+inline double artificial_viscosity(double h, double rho0, double j, double c1, double c2,
+                                   double acoustic_speed, double log_j_ratio, double dt) {
+  return 0.75 * h * rho0 / j * (c2 * acoustic_speed - c1 * h * log_j_ratio / dt);
+}
+
+}  // namespace softshock::continuum

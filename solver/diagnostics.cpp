@@ -1,0 +1,232 @@
+#include "diagnostics.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <numbers>
+#include <unordered_set>
+
+#include "continuum.hpp"
+
+namespace softshock {
+namespace {
+
+constexpr double kTwoPi = 2.0 * std::numbers::pi;
+
+int64_t edge_key(int32_t a, int32_t b) {
+  return (static_cast<int64_t>(std::min(a, b)) << 32) | static_cast<uint32_t>(std::max(a, b));
+}
+
+}  // namespace
+
+PolarFrame polar_frame(const Problem& problem) {
+  if (problem.reference_radius_m > 0) return {problem.origin, problem.reference_radius_m};
+  const Mesh& mesh = problem.mesh;
+  const auto origin = mesh_centroid(mesh);
+  double sum = 0;
+  for (int32_t i : mesh.boundary_nodes) sum += std::hypot(mesh.x[i] - origin[0], mesh.y[i] - origin[1]);
+  const auto n = mesh.boundary_nodes.size();
+  return {origin, n ? sum / static_cast<double>(n) : 1.0};
+}
+
+Diagnostics::Diagnostics(const Problem& problem, const ElementGeometry& geometry, int modes)
+    : problem_(problem), geometry_(geometry), modes_(modes) {
+  const Mesh& mesh = problem.mesh;
+  rim_nodes_ = mesh.boundary_nodes;
+  const PolarFrame frame = polar_frame(problem);
+  origin_ = frame.origin;
+  reference_radius_ = frame.reference_radius_m;
+
+  // Rim: reference angles, trapezoidal weights in theta and the Fourier tables.
+  const std::size_t nr = rim_nodes_.size();
+  std::vector<double> theta(nr);
+  rim_ref_radius_.resize(nr);
+  for (std::size_t k = 0; k < nr; ++k) {
+    const double dx = mesh.x[rim_nodes_[k]] - origin_[0], dy = mesh.y[rim_nodes_[k]] - origin_[1];
+    theta[k] = std::atan2(dy, dx);
+    rim_ref_radius_[k] = std::hypot(dx, dy);
+  }
+  rim_weight_.resize(nr);
+  for (std::size_t k = 0; k < nr; ++k) {
+    double span = theta[(k + 1) % nr] - theta[(k + nr - 1) % nr];
+    span = std::remainder(span, kTwoPi);  // wrap into (-pi, pi]
+    if (span < 0) span += kTwoPi;         // the loop is counter-clockwise
+    rim_weight_[k] = 0.5 * span;
+  }
+  mode_cos_.resize((modes_ + 1) * nr);
+  mode_sin_.resize((modes_ + 1) * nr);
+  for (int m = 0; m <= modes_; ++m) {
+    for (std::size_t k = 0; k < nr; ++k) {
+      mode_cos_[m * nr + k] = std::cos(m * theta[k]);
+      mode_sin_[m * nr + k] = std::sin(m * theta[k]);
+    }
+  }
+
+  // Centre region: elements whose reference centroid lies within the radius (else nearest).
+  const double rc = problem.center_region_radius_m;
+  double nearest = std::numeric_limits<double>::max();
+  int32_t nearest_element = 0;
+  for (std::size_t e = 0; e < geometry.size(); ++e) {
+    const auto& t = mesh.triangles[e];
+    const double cx = (mesh.x[t[0]] + mesh.x[t[1]] + mesh.x[t[2]]) / 3.0 - origin_[0];
+    const double cy = (mesh.y[t[0]] + mesh.y[t[1]] + mesh.y[t[2]]) / 3.0 - origin_[1];
+    const double r = std::hypot(cx, cy);
+    if (r <= rc) center_elements_.push_back(static_cast<int32_t>(e));
+    if (r < nearest) nearest = r, nearest_element = static_cast<int32_t>(e);
+  }
+  if (center_elements_.empty() && geometry.size() > 0) center_elements_.push_back(nearest_element);
+
+  std::unordered_set<int64_t> rim_edges;
+  for (std::size_t k = 0; k < nr; ++k)
+    rim_edges.insert(edge_key(rim_nodes_[k], rim_nodes_[(k + 1) % nr]));
+  for (std::size_t e = 0; e < geometry.size(); ++e) {
+    const auto& t = mesh.triangles[e];
+    if (rim_edges.count(edge_key(t[0], t[1])) || rim_edges.count(edge_key(t[1], t[2])) ||
+        rim_edges.count(edge_key(t[2], t[0])))
+      rim_elements_.push_back(static_cast<int32_t>(e));
+  }
+}
+
+ElementStress Diagnostics::element_stress(const NodalView& nodes, const ElementState& s,
+                                          std::size_t e) const {
+  namespace cm = continuum;
+  const ElementGeometry& g = geometry_;
+  const Material& mat = problem_.material;
+  const int32_t a = g.node0[e], b = g.node1[e], c = g.node2[e];
+  const cm::Mat2 f = cm::deformation_gradient(
+      nodes.x[b] - nodes.x[a], nodes.y[b] - nodes.y[a], nodes.x[c] - nodes.x[a],
+      nodes.y[c] - nodes.y[a], {g.dm_inv_xx[e], g.dm_inv_xy[e], g.dm_inv_yx[e], g.dm_inv_yy[e]});
+  const double j = cm::det(f);
+  const double n = mat.tait_n();
+  const double j_minus_n = std::pow(j, -n);
+  const double j_minus_23 = std::pow(j, -2.0 / 3.0);
+  const double sm = cm::tait_mean_stress(mat.bulk_modulus_Pa, n, j_minus_n);
+  const double i1 = cm::first_invariant(f);
+  // Elastic Cauchy stress: sigma_m I + (mu J^-2/3 / J)(B - I1/3 I), B = F F^T (B_zz = 1).
+  const double k = mat.shear_modulus_Pa * j_minus_23 / j;
+  ElementStress out;
+  out.xx = sm + k * (f[0] * f[0] + f[1] * f[1] - i1 / 3.0);
+  out.xy = k * (f[0] * f[2] + f[1] * f[3]);
+  out.yy = sm + k * (f[2] * f[2] + f[3] * f[3] - i1 / 3.0);
+  out.zz = sm + k * (1.0 - i1 / 3.0);
+  // Viscous Cauchy stress P_v F^T / J from the last evaluation (traceless in 3D).
+  const double vxx = (s.pv_xx[e] * f[0] + s.pv_xy[e] * f[1]) / j;
+  const double vxy = (s.pv_xx[e] * f[2] + s.pv_xy[e] * f[3]) / j;
+  const double vyy = (s.pv_yx[e] * f[2] + s.pv_yy[e] * f[3]) / j;
+  out.xx += vxx, out.xy += vxy, out.yy += vyy, out.zz -= vxx + vyy;
+  out.j = j;
+  out.stored_energy_density = cm::tait_energy(mat.bulk_modulus_Pa, n, j, j_minus_n) +
+                              cm::neo_hookean_energy(mat.shear_modulus_Pa, i1, j_minus_23);
+  return out;
+}
+
+void Diagnostics::sample(const NodalView& nodes, const ElementState& s, double t, double dt,
+                         double dissipated, double external_work, History& h) const {
+  const Mesh& mesh = problem_.mesh;
+  const std::size_t nn = mesh.node_count();
+  double kinetic = 0;
+  for (std::size_t i = 0; i < nn; ++i)
+    kinetic += 0.5 * nodes.mass[i] * (nodes.vx[i] * nodes.vx[i] + nodes.vy[i] * nodes.vy[i]);
+  double elastic = 0;
+  for (std::size_t e = 0; e < geometry_.size(); ++e)
+    elastic += geometry_.area0[e] * element_stress(nodes, s, e).stored_energy_density;
+
+  // Rim: radial displacement, velocity and acceleration in the current polar frame.
+  const std::size_t nr = rim_nodes_.size();
+  std::vector<double> ur(nr);
+  double r_min = std::numeric_limits<double>::max(), r_max = 0;
+  double mean_u = 0, mean_v = 0, mean_a = 0;
+  for (std::size_t k = 0; k < nr; ++k) {
+    const int32_t i = rim_nodes_[k];
+    const double dx = nodes.x[i] - origin_[0], dy = nodes.y[i] - origin_[1];
+    const double r = std::hypot(dx, dy);
+    const double ex = r > 0 ? dx / r : 0, ey = r > 0 ? dy / r : 0;
+    ur[k] = r - rim_ref_radius_[k];
+    r_min = std::min(r_min, r), r_max = std::max(r_max, r);
+    const double w = rim_weight_[k] / kTwoPi;
+    mean_u += w * ur[k];
+    mean_v += w * (nodes.vx[i] * ex + nodes.vy[i] * ey);
+    mean_a += w * (nodes.ax[i] * ex + nodes.ay[i] * ey);
+  }
+
+  // Fourier amplitudes of u_r(theta) (trapezoidal quadrature on the non-uniform rim), / R0.
+  std::vector<double> amplitude(modes_ + 1);
+  for (int m = 0; m <= modes_; ++m) {
+    double a = 0, b = 0;
+    const double* cs = &mode_cos_[m * nr];
+    const double* sn = &mode_sin_[m * nr];
+    for (std::size_t k = 0; k < nr; ++k) {
+      a += rim_weight_[k] * ur[k] * cs[k];
+      b += rim_weight_[k] * ur[k] * sn[k];
+    }
+    const double norm = m == 0 ? 1.0 / kTwoPi : 1.0 / std::numbers::pi;
+    amplitude[m] = norm * std::hypot(a, b) / reference_radius_;
+  }
+
+  double center_area = 0, center_stress = 0;
+  for (int32_t e : center_elements_) {
+    const double area = geometry_.area0[e];
+    center_area += area;
+    center_stress += area * element_stress(nodes, s, e).mean();
+  }
+
+  double min_hoop = std::numeric_limits<double>::max();
+  for (int32_t e : rim_elements_) {
+    const ElementStress st = element_stress(nodes, s, e);
+    const auto& tri = mesh.triangles[e];
+    const double cx = (nodes.x[tri[0]] + nodes.x[tri[1]] + nodes.x[tri[2]]) / 3.0 - origin_[0];
+    const double cy = (nodes.y[tri[0]] + nodes.y[tri[1]] + nodes.y[tri[2]]) / 3.0 - origin_[1];
+    const double r = std::hypot(cx, cy);
+    const double tx = r > 0 ? -cy / r : 0, ty = r > 0 ? cx / r : 1;
+    min_hoop = std::min(min_hoop, tx * tx * st.xx + 2 * tx * ty * st.xy + ty * ty * st.yy);
+  }
+  if (rim_elements_.empty()) min_hoop = 0;
+
+  h.time.push_back(t);
+  h.kinetic_energy.push_back(kinetic);
+  h.elastic_energy.push_back(elastic);
+  h.dissipated_energy.push_back(dissipated);
+  h.external_work.push_back(external_work);
+  h.abar.push_back(nr ? (r_max - r_min) / reference_radius_ : 0);
+  h.center_mean_stress.push_back(center_area > 0 ? center_stress / center_area : 0);
+  h.rim_mean_radial_displacement.push_back(mean_u);
+  h.rim_mean_radial_velocity.push_back(mean_v);
+  h.rim_mean_radial_acceleration.push_back(mean_a);
+  h.rim_min_hoop_stress.push_back(min_hoop);
+  h.dt.push_back(dt);
+  h.modes.push_back(std::move(amplitude));
+}
+
+FieldFrame Diagnostics::frame(const NodalView& nodes, const ElementState& s, double t) const {
+  const Mesh& mesh = problem_.mesh;
+  const std::size_t nn = mesh.node_count(), ne = geometry_.size();
+  FieldFrame fr;
+  fr.time_s = t;
+  fr.displacement.resize(2 * nn);
+  fr.velocity.resize(2 * nn);
+  for (std::size_t i = 0; i < nn; ++i) {
+    fr.displacement[2 * i] = nodes.x[i] - mesh.x[i];
+    fr.displacement[2 * i + 1] = nodes.y[i] - mesh.y[i];
+    fr.velocity[2 * i] = nodes.vx[i];
+    fr.velocity[2 * i + 1] = nodes.vy[i];
+  }
+  fr.J.resize(ne), fr.mean_stress.resize(ne), fr.radial_stress.resize(ne);
+  fr.hoop_stress.resize(ne), fr.von_mises.resize(ne);
+  for (std::size_t e = 0; e < ne; ++e) {
+    const ElementStress st = element_stress(nodes, s, e);
+    const auto& tri = mesh.triangles[e];
+    const double cx = (nodes.x[tri[0]] + nodes.x[tri[1]] + nodes.x[tri[2]]) / 3.0 - origin_[0];
+    const double cy = (nodes.y[tri[0]] + nodes.y[tri[1]] + nodes.y[tri[2]]) / 3.0 - origin_[1];
+    const double r = std::hypot(cx, cy);
+    const double ex = r > 0 ? cx / r : 1, ey = r > 0 ? cy / r : 0;
+    fr.J[e] = st.j;
+    fr.mean_stress[e] = st.mean();
+    fr.radial_stress[e] = ex * ex * st.xx + 2 * ex * ey * st.xy + ey * ey * st.yy;
+    fr.hoop_stress[e] = ey * ey * st.xx - 2 * ex * ey * st.xy + ex * ex * st.yy;
+    const double dxy = st.xx - st.yy, dyz = st.yy - st.zz, dzx = st.zz - st.xx;
+    fr.von_mises[e] = std::sqrt(0.5 * (dxy * dxy + dyz * dyz + dzx * dzx) + 3.0 * st.xy * st.xy);
+  }
+  return fr;
+}
+
+}  // namespace softshock

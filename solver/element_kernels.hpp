@@ -1,0 +1,61 @@
+// The per-element hot loop: deformation gradient, Tait + neo-Hookean stress, artificial
+// viscosity, nodal forces, stable-step candidate and dissipation increment, over plain
+// structure-of-arrays data. No virtual calls, no I/O, no allocation.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+namespace softshock {
+
+// Reference geometry of the P1 elements (constant during a run).
+struct ElementGeometry {
+  std::vector<int32_t> node0, node1, node2;
+  // Dm^-1 with Dm = [X1 - X0, X2 - X0]; rows are the reference gradients of N1 and N2.
+  std::vector<double> dm_inv_xx, dm_inv_xy, dm_inv_yx, dm_inv_yy;
+  std::vector<double> area0;  // m^2 (per metre of thickness: m^3/m)
+  std::size_t size() const { return area0.size(); }
+};
+
+// Element state carried from one force evaluation to the next.
+struct ElementState {
+  std::vector<double> f_xx, f_xy, f_yx, f_yy;  // F at the last evaluation (lags the viscosity)
+  std::vector<double> log_j;                   // ln J at the last evaluation
+  std::vector<double> pv_xx, pv_xy, pv_yx, pv_yy;  // viscous P at the last evaluation
+  // Nodal forces (acting on the nodes, = -f_int) of corners 0, 1, 2: corner-major, size 3E.
+  std::vector<double> force_x, force_y;
+  void resize(std::size_t elements);
+  void reset_to_reference();  // F = I, ln J = 0, P_v = 0
+};
+
+struct KernelParams {
+  double kappa = 0, tait_n = 0, mu = 0, rho0 = 0;
+  double c1 = 0, c2 = 0;
+  bool viscosity = true;
+  double dt = 0;  // the step that led from the stored state to the current positions; 0 = none
+};
+
+struct KernelTotals {
+  double min_step_sq = 1e300;      // min over elements of h^2 / c^2 (s^2)
+  double dissipation = 0;          // trapezoidal P_v : dF increment over this step (J/m)
+  int64_t bad_element = -1;        // first element with J <= 0 or non-finite J
+  double bad_j = 0;
+};
+
+// Evaluates elements [begin, end): updates state and the nodal force contributions.
+void compute_element_forces(const ElementGeometry& geometry, const double* x, const double* y,
+                            const KernelParams& params, std::size_t begin, std::size_t end,
+                            ElementState& state, KernelTotals& totals);
+
+// Node -> (element corner) adjacency for the deterministic gather of nodal forces.
+struct NodeCorners {
+  std::vector<int64_t> offset;  // size N + 1
+  std::vector<int64_t> corner;  // index into ElementState::force_x/force_y (corner * E + e)
+};
+NodeCorners build_node_corners(const ElementGeometry& geometry, std::size_t nodes);
+
+// force[n] = sum of corner forces of node n, for nodes [begin, end); fixed summation order.
+void gather_nodal_forces(const NodeCorners& adjacency, const ElementState& state,
+                         std::size_t begin, std::size_t end, double* fx, double* fy);
+
+}  // namespace softshock

@@ -1,0 +1,238 @@
+#include "run_spec.hpp"
+
+#include <google/protobuf/util/json_util.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include "gmsh_mesher.hpp"
+
+namespace softshock {
+namespace {
+
+namespace pb = google::protobuf;
+
+// The thesis baseline (docs/model.md).
+constexpr double kRadius = 90e-6, kSide = 540e-6, kCornerRadius = 90e-6;
+constexpr int kTargetElements = 16500;
+constexpr double kDensity = 1000.0, kKappa = 2e9, kMu = 5e3, kGamma = 6.15;
+constexpr double kC1 = 1.0, kC2 = 0.1;
+constexpr double kPressure = 2e9, kDuration = 8e-9;
+constexpr double kEndTime = 800e-9, kCfl = 0.5, kOutputInterval = 20e-9, kHistoryInterval = 1e-9;
+constexpr int kModes = 64, kThreads = 1;
+constexpr int kMinElements = 20;
+
+void require(bool ok, const char* field, const std::string& rule) {
+  if (!ok) throw SpecError(field, rule);
+}
+
+void require_finite_positive(double v, const char* field) {
+  require(std::isfinite(v) && v > 0, field, "must be a finite number > 0");
+}
+
+std::string fmt(double v) {
+  std::ostringstream s;
+  s << v;
+  return s.str();
+}
+
+}  // namespace
+
+v1::RunSpec parse_spec_json(const std::string& json) {
+  v1::RunSpec spec;
+  pb::util::JsonParseOptions options;
+  options.ignore_unknown_fields = false;
+  const auto status = pb::util::JsonStringToMessage(json, &spec, options);
+  if (!status.ok()) throw SpecError("spec", "invalid JSON for RunSpec: " + std::string(status.message()));
+  return spec;
+}
+
+v1::RunSpec read_spec_file(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw SpecError("spec", "cannot read spec file '" + path + "'");
+  std::stringstream buffer;
+  buffer << in.rdbuf();
+  try {
+    return parse_spec_json(buffer.str());
+  } catch (const SpecError& e) {
+    throw SpecError("spec", path + ": " + std::string(e.what()).substr(6));
+  }
+}
+
+v1::RunSpec with_defaults(const v1::RunSpec& in) {
+  v1::RunSpec s = in;
+  auto* g = s.mutable_geometry();
+  switch (g->shape_case()) {
+    case v1::Geometry::SHAPE_NOT_SET:
+      g->mutable_disk()->set_radius(kRadius);
+      break;
+    case v1::Geometry::kDisk:
+      if (!g->disk().has_radius()) g->mutable_disk()->set_radius(kRadius);
+      break;
+    case v1::Geometry::kRoundedSquare:
+      if (!g->rounded_square().has_side()) g->mutable_rounded_square()->set_side(kSide);
+      if (!g->rounded_square().has_corner_radius())
+        g->mutable_rounded_square()->set_corner_radius(kCornerRadius);
+      break;
+    case v1::Geometry::kMeshFile:
+      break;
+  }
+  if (!g->has_target_elements()) g->set_target_elements(kTargetElements);
+  auto* m = s.mutable_material();
+  if (!m->has_density()) m->set_density(kDensity);
+  if (!m->has_bulk_modulus()) m->set_bulk_modulus(kKappa);
+  if (!m->has_shear_modulus()) m->set_shear_modulus(kMu);
+  if (!m->has_tait_gamma()) m->set_tait_gamma(kGamma);
+  auto* v = s.mutable_viscosity();
+  if (!v->has_c1()) v->set_c1(kC1);
+  if (!v->has_c2()) v->set_c2(kC2);
+  auto* l = s.mutable_load();
+  if (!l->has_pressure()) l->set_pressure(kPressure);
+  if (!l->has_duration()) l->set_duration(kDuration);
+  if (l->shape() == v1::PULSE_SHAPE_UNSPECIFIED) l->set_shape(v1::SQUARE);
+  auto* r = s.mutable_run();
+  if (!r->has_end_time()) r->set_end_time(kEndTime);
+  if (!r->has_cfl()) r->set_cfl(kCfl);
+  if (!r->has_output_interval()) r->set_output_interval(kOutputInterval);
+  if (!r->has_history_interval()) r->set_history_interval(kHistoryInterval);
+  if (!r->has_modes()) r->set_modes(kModes);
+  if (!r->has_threads()) r->set_threads(kThreads);
+  return s;
+}
+
+void validate_spec(const v1::RunSpec& s, const SpecLimits& limits) {
+  const auto& g = s.geometry();
+  switch (g.shape_case()) {
+    case v1::Geometry::kDisk:
+      require_finite_positive(g.disk().radius(), "geometry.disk.radius");
+      break;
+    case v1::Geometry::kRoundedSquare: {
+      const double side = g.rounded_square().side(), rc = g.rounded_square().corner_radius();
+      require_finite_positive(side, "geometry.rounded_square.side");
+      require(std::isfinite(rc) && rc >= 0 && rc <= 0.5 * side,
+              "geometry.rounded_square.corner_radius", "must be >= 0 and <= side / 2");
+      break;
+    }
+    case v1::Geometry::kMeshFile: {
+      require(!g.mesh_file().empty(), "geometry.mesh_file", "must name a .msh file");
+      std::error_code ec;
+      require(std::filesystem::is_regular_file(g.mesh_file(), ec), "geometry.mesh_file",
+              "file '" + g.mesh_file() + "' does not exist or is not a regular file");
+      break;
+    }
+    case v1::Geometry::SHAPE_NOT_SET:
+      throw SpecError("geometry", "one of disk, rounded_square or mesh_file is required");
+  }
+  require(g.target_elements() >= kMinElements && g.target_elements() <= limits.max_elements,
+          "geometry.target_elements",
+          "must be between " + std::to_string(kMinElements) + " and " +
+              std::to_string(limits.max_elements));
+
+  const auto& m = s.material();
+  require_finite_positive(m.density(), "material.density");
+  require_finite_positive(m.bulk_modulus(), "material.bulk_modulus");
+  require(std::isfinite(m.shear_modulus()) && m.shear_modulus() >= 0, "material.shear_modulus",
+          "must be a finite number >= 0");
+  require_finite_positive(m.tait_gamma(), "material.tait_gamma");
+
+  const auto& v = s.viscosity();
+  require(std::isfinite(v.c1()) && v.c1() >= 0, "viscosity.c1", "must be a finite number >= 0");
+  require(std::isfinite(v.c2()) && v.c2() >= 0, "viscosity.c2", "must be a finite number >= 0");
+
+  const auto& l = s.load();
+  require(std::isfinite(l.pressure()) && l.pressure() >= 0 && l.pressure() <= 100 * m.bulk_modulus(),
+          "load.pressure", "must be a finite number >= 0 and <= 100 x material.bulk_modulus");
+  require_finite_positive(l.duration(), "load.duration");
+  require(v1::PulseShape_IsValid(l.shape()) && l.shape() != v1::PULSE_SHAPE_UNSPECIFIED,
+          "load.shape", "must be SQUARE, GAUSSIAN, LINEAR or QUADRATIC");
+
+  const auto& r = s.run();
+  require(std::isfinite(r.end_time()) && r.end_time() > 0 && r.end_time() <= limits.max_end_time_s,
+          "run.end_time", "must be > 0 and <= " + fmt(limits.max_end_time_s) + " s");
+  require(std::isfinite(r.cfl()) && r.cfl() > 0 && r.cfl() < 1, "run.cfl",
+          "must be > 0 and < 1");
+  require(std::isfinite(r.output_interval()) && r.output_interval() >= 0, "run.output_interval",
+          "must be >= 0 (0 = no field frames)");
+  require(r.output_interval() == 0 || r.end_time() / r.output_interval() <= limits.max_frames,
+          "run.output_interval",
+          "gives more than " + std::to_string(limits.max_frames) + " frames");
+  require_finite_positive(r.history_interval(), "run.history_interval");
+  require(r.end_time() / r.history_interval() <= static_cast<double>(limits.max_history_samples),
+          "run.history_interval",
+          "gives more than " + std::to_string(limits.max_history_samples) + " samples");
+  require(r.modes() >= 0 && r.modes() <= limits.max_modes, "run.modes",
+          "must be between 0 and " + std::to_string(limits.max_modes));
+  require(r.threads() >= 1 && r.threads() <= limits.max_threads, "run.threads",
+          "must be between 1 and " + std::to_string(limits.max_threads));
+}
+
+v1::RunSpec normalize_spec(const v1::RunSpec& spec, const SpecLimits& limits) {
+  v1::RunSpec s = with_defaults(spec);
+  validate_spec(s, limits);
+  return s;
+}
+
+std::string spec_to_json(const v1::RunSpec& spec) {
+  std::string out;
+  pb::util::JsonPrintOptions options;
+  options.preserve_proto_field_names = true;
+  (void)pb::util::MessageToJsonString(spec, &out, options);
+  return out;
+}
+
+Problem make_problem(const v1::RunSpec& s, const SpecLimits& limits) {
+  Problem p;
+  const auto& g = s.geometry();
+  switch (g.shape_case()) {
+    case v1::Geometry::kDisk:
+      p.mesh = mesh_disk(g.disk().radius(), g.target_elements());
+      p.origin = {0.0, 0.0};
+      p.reference_radius_m = g.disk().radius();
+      break;
+    case v1::Geometry::kRoundedSquare:
+      p.mesh = mesh_rounded_square(g.rounded_square().side(), g.rounded_square().corner_radius(),
+                                   g.target_elements());
+      p.origin = {0.0, 0.0};
+      p.reference_radius_m = 0.5 * g.rounded_square().side();
+      break;
+    case v1::Geometry::kMeshFile:
+      try {
+        p.mesh = read_gmsh_file(g.mesh_file());
+      } catch (const std::exception& e) {
+        throw SpecError("geometry.mesh_file", e.what());
+      }
+      break;
+    case v1::Geometry::SHAPE_NOT_SET:
+      throw SpecError("geometry", "one of disk, rounded_square or mesh_file is required");
+  }
+  require(static_cast<int64_t>(p.mesh.element_count()) <= limits.max_elements,
+          "geometry.target_elements",
+          "the mesh has " + std::to_string(p.mesh.element_count()) + " elements, more than " +
+              std::to_string(limits.max_elements));
+  const auto& m = s.material();
+  p.material = {m.density(), m.bulk_modulus(), m.shear_modulus(), m.tait_gamma()};
+  p.viscosity = {s.viscosity().c1(), s.viscosity().c2(), true};
+  const auto& l = s.load();
+  PulseShape shape = PulseShape::kSquare;
+  if (l.shape() == v1::GAUSSIAN) shape = PulseShape::kGaussian;
+  if (l.shape() == v1::LINEAR) shape = PulseShape::kLinear;
+  if (l.shape() == v1::QUADRATIC) shape = PulseShape::kQuadratic;
+  p.load = {shape, l.pressure(), l.duration()};
+  return p;
+}
+
+SolverOptions make_options(const v1::RunSpec& s) {
+  SolverOptions o;
+  const auto& r = s.run();
+  o.end_time_s = r.end_time();
+  o.cfl = r.cfl();
+  o.output_interval_s = r.output_interval();
+  o.history_interval_s = r.history_interval();
+  o.modes = r.modes();
+  o.threads = r.threads();
+  return o;
+}
+
+}  // namespace softshock

@@ -1,0 +1,55 @@
+// The run spec (proto softshock.v1.RunSpec): JSON parsing, defaults, validation, and the
+// translation into a Problem + SolverOptions.
+#pragma once
+
+#include <stdexcept>
+#include <string>
+
+#include "model.hpp"
+#include "softshock/v1/spec.pb.h"
+
+namespace softshock {
+
+// A spec that breaks a rule. field() is the JSON path (e.g. "geometry.disk.radius").
+class SpecError : public std::invalid_argument {
+ public:
+  SpecError(std::string field, const std::string& rule)
+      : std::invalid_argument(field + ": " + rule), field_(std::move(field)) {}
+  const std::string& field() const { return field_; }
+
+ private:
+  std::string field_;
+};
+
+// Limits a host imposes on specs (the daemon configures them; the CLI uses the defaults).
+struct SpecLimits {
+  int max_elements = 2'000'000;
+  double max_end_time_s = 1e-5;
+  int max_modes = 1024;
+  int max_threads = 256;
+  int max_frames = 2000;
+  int64_t max_history_samples = 1'000'000;
+};
+
+// Parses protobuf JSON (unknown fields rejected). Throws SpecError("spec", parser message).
+v1::RunSpec parse_spec_json(const std::string& json);
+// Reads and parses a spec file; throws SpecError("spec", ...) naming the path.
+v1::RunSpec read_spec_file(const std::string& path);
+
+// Copy with every absent field set to its default (the thesis baseline, docs/model.md).
+v1::RunSpec with_defaults(const v1::RunSpec& spec);
+// Throws SpecError for the first field breaking a rule. Expects with_defaults() applied.
+void validate_spec(const v1::RunSpec& spec, const SpecLimits& limits = {});
+// Defaults filled, then validated: what every entry point calls.
+v1::RunSpec normalize_spec(const v1::RunSpec& spec, const SpecLimits& limits = {});
+
+// Compact JSON with every field present (defaults filled); used in result files.
+std::string spec_to_json(const v1::RunSpec& spec);
+
+// Meshes the geometry (Gmsh) and fills the Problem. Expects a normalized spec. Throws
+// SpecError("geometry.mesh_file", ...) if a mesh file cannot be read, and
+// SpecError("geometry.target_elements", ...) if the mesh exceeds limits.max_elements.
+Problem make_problem(const v1::RunSpec& spec, const SpecLimits& limits = {});
+SolverOptions make_options(const v1::RunSpec& spec);
+
+}  // namespace softshock

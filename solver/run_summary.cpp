@@ -1,0 +1,137 @@
+#include "run_summary.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <sstream>
+
+namespace softshock {
+namespace {
+
+// Vertex of the parabola through three equally spaced samples around index k.
+double refine_extremum(const std::vector<double>& t, const std::vector<double>& v, std::size_t k) {
+  if (k == 0 || k + 1 >= v.size()) return t[k];
+  const double d = v[k - 1] - 2 * v[k] + v[k + 1];
+  if (d == 0) return t[k];
+  const double shift = 0.5 * (v[k - 1] - v[k + 1]) / d;
+  const double h = 0.5 * (t[k + 1] - t[k - 1]);
+  return t[k] + std::clamp(shift, -0.5, 0.5) * h;
+}
+
+std::string number(double v) {
+  if (!std::isfinite(v)) return "null";
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.10g", v);
+  return buf;
+}
+
+}  // namespace
+
+NondimensionalGroups nondimensional_groups(const Problem& p) {
+  const double r0 = polar_frame(p).reference_radius_m;
+  const double c0 = std::sqrt(p.material.bulk_modulus_Pa / p.material.density_kg_m3);
+  NondimensionalGroups g;
+  g.time_scale_s = r0 / c0;
+  g.pbar = p.load.pressure_Pa / p.material.bulk_modulus_Pa;
+  g.tbar_pulse = p.load.duration_s / g.time_scale_s;
+  g.mubar = p.material.shear_modulus_Pa / p.material.bulk_modulus_Pa;
+  g.gamma = p.material.tait_gamma;
+  g.c1 = p.viscosity.c1;
+  g.c2 = p.viscosity.c2;
+  return g;
+}
+
+RunSummary summarize(const Problem& problem, const RunResult& r) {
+  RunSummary s;
+  const History& h = r.history;
+  s.elements = problem.mesh.element_count();
+  s.nodes = problem.mesh.node_count();
+  s.steps = r.steps;
+  s.wall_time_s = r.wall_time_s;
+  s.groups = nondimensional_groups(problem);
+  s.min_dt_s = r.min_dt_s, s.max_dt_s = r.max_dt_s;
+  s.status = r.status == RunStatus::kCompleted ? "completed"
+             : r.status == RunStatus::kCancelled ? "cancelled"
+                                                  : "failed";
+  s.error = r.error;
+  const std::size_t n = h.size();
+  if (n == 0) return s;
+  s.end_time_s = h.time.back();
+  s.energy_injected_J_per_m = h.external_work.back();
+
+  const double pulse_end = problem.load.end_s();
+  const double first_cycle_end = 4.0 * s.groups.time_scale_s;
+  bool after_pulse_found = false;
+  double center_min = 0;
+  for (std::size_t k = 0; k < n; ++k) {
+    s.max_abar = std::max(s.max_abar, h.abar[k]);
+    if (h.time[k] <= first_cycle_end * (1 + 1e-12)) {
+      s.max_abar_first_cycle = std::max(s.max_abar_first_cycle, h.abar[k]);
+      center_min = std::min(center_min, h.center_mean_stress[k]);
+    }
+    if (!after_pulse_found && h.time[k] >= pulse_end * (1 - 1e-12)) {
+      s.energy_after_pulse_J_per_m = h.kinetic_energy[k] + h.elastic_energy[k];
+      after_pulse_found = true;
+    }
+  }
+
+  // Dominant rim mode at the end: the largest amplitude among modes >= 2 (0 is the uniform
+  // expansion, 1 a rigid shift).
+  const auto& last = h.modes.back();
+  for (std::size_t m = 2; m < last.size(); ++m)
+    if (s.dominant_mode_end < 2 || last[m] > last[s.dominant_mode_end])
+      s.dominant_mode_end = static_cast<int>(m);
+
+  // Shock at the centre: the first compressive peak of the centre's mean stress, i.e. the
+  // first local minimum after it falls below half its first-cycle minimum.
+  if (center_min < 0) {
+    std::size_t k = 0;
+    while (k < n && h.center_mean_stress[k] > 0.5 * center_min) ++k;
+    while (k + 1 < n && h.center_mean_stress[k + 1] < h.center_mean_stress[k]) ++k;
+    if (k < n) s.shock_at_center_s = refine_extremum(h.time, h.center_mean_stress, k);
+  }
+
+  // Rim reflections: peaks of the rim's mean outward radial acceleration after the shock has
+  // reached the centre, at least a quarter of the largest such peak.
+  const double t_from = std::max(pulse_end, s.shock_at_center_s);
+  double a_max = 0;
+  for (std::size_t k = 0; k < n; ++k)
+    if (h.time[k] > t_from) a_max = std::max(a_max, h.rim_mean_radial_acceleration[k]);
+  const auto& a = h.rim_mean_radial_acceleration;
+  for (std::size_t k = 1; k + 1 < n && a_max > 0; ++k) {
+    if (h.time[k] <= t_from) continue;
+    if (a[k] >= 0.25 * a_max && a[k] >= a[k - 1] && a[k] > a[k + 1])
+      s.rim_reflections_s.push_back(refine_extremum(h.time, a, k));
+  }
+  return s;
+}
+
+std::string summary_to_json(const RunSummary& s) {
+  std::ostringstream o;
+  o << "{\"status\":\"" << s.status << "\"";
+  if (!s.error.empty()) {
+    std::string e;
+    for (char c : s.error) {
+      if (c == '"' || c == '\\') e += '\\';
+      if (static_cast<unsigned char>(c) >= 0x20) e += c;
+    }
+    o << ",\"error\":\"" << e << "\"";
+  }
+  o << ",\"elements\":" << s.elements << ",\"nodes\":" << s.nodes << ",\"steps\":" << s.steps
+    << ",\"wall_time_s\":" << number(s.wall_time_s) << ",\"end_time_s\":" << number(s.end_time_s)
+    << ",\"groups\":{\"pbar\":" << number(s.groups.pbar)
+    << ",\"tbar_pulse\":" << number(s.groups.tbar_pulse) << ",\"mubar\":" << number(s.groups.mubar)
+    << ",\"gamma\":" << number(s.groups.gamma) << ",\"c1\":" << number(s.groups.c1)
+    << ",\"c2\":" << number(s.groups.c2) << ",\"time_scale_s\":" << number(s.groups.time_scale_s)
+    << "},\"energy_injected_J_per_m\":" << number(s.energy_injected_J_per_m)
+    << ",\"energy_after_pulse_J_per_m\":" << number(s.energy_after_pulse_J_per_m)
+    << ",\"max_abar_first_cycle\":" << number(s.max_abar_first_cycle)
+    << ",\"max_abar\":" << number(s.max_abar) << ",\"dominant_mode_end\":" << s.dominant_mode_end
+    << ",\"shock_at_center_s\":" << number(s.shock_at_center_s) << ",\"rim_reflections_s\":[";
+  for (std::size_t k = 0; k < s.rim_reflections_s.size(); ++k)
+    o << (k ? "," : "") << number(s.rim_reflections_s[k]);
+  o << "],\"min_dt_s\":" << number(s.min_dt_s) << ",\"max_dt_s\":" << number(s.max_dt_s) << "}";
+  return o.str();
+}
+
+}  // namespace softshock

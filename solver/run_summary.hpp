@@ -1,0 +1,40 @@
+// Reduction of a finished run to the figures the CLI prints and the daemon catalogues.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "model.hpp"
+#include "simulation.hpp"
+
+namespace softshock {
+
+// Nondimensional groups of physics.md section 7 (t-bar = t / R0 * sqrt(kappa / rho0)).
+struct NondimensionalGroups {
+  double pbar = 0, tbar_pulse = 0, mubar = 0, gamma = 0, c1 = 0, c2 = 0;
+  double time_scale_s = 0;  // R0 / sqrt(kappa / rho0)
+};
+NondimensionalGroups nondimensional_groups(const Problem& problem);
+
+struct RunSummary {
+  std::size_t elements = 0, nodes = 0;
+  int64_t steps = 0;
+  double wall_time_s = 0;
+  double end_time_s = 0;
+  NondimensionalGroups groups;
+  double energy_injected_J_per_m = 0;        // external work at the end of the run
+  double energy_after_pulse_J_per_m = 0;     // kinetic + elastic when the pulse has ended
+  double max_abar_first_cycle = 0;           // max A-bar over 0 <= t-bar <= 4
+  double max_abar = 0;                       // over the whole run
+  int dominant_mode_end = 0;                 // largest amplitude among modes >= 2 at the end
+  double shock_at_center_s = -1;             // focusing: first minimum of centre mean stress
+  std::vector<double> rim_reflections_s;     // peaks of the outward rim acceleration
+  double min_dt_s = 0, max_dt_s = 0;
+  std::string status;                        // "completed", "cancelled", "failed"
+  std::string error;
+};
+
+RunSummary summarize(const Problem& problem, const RunResult& result);
+std::string summary_to_json(const RunSummary& summary);
+
+}  // namespace softshock

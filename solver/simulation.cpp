@@ -1,0 +1,309 @@
+#include "simulation.hpp"
+
+#include <omp.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <stdexcept>
+
+#include "diagnostics.hpp"
+#include "element_kernels.hpp"
+
+namespace softshock {
+
+std::vector<std::pair<std::string, const std::vector<double>*>> History::columns() const {
+  return {{"time", &time},
+          {"kinetic_energy", &kinetic_energy},
+          {"elastic_energy", &elastic_energy},
+          {"dissipated_energy", &dissipated_energy},
+          {"external_work", &external_work},
+          {"abar", &abar},
+          {"center_mean_stress", &center_mean_stress},
+          {"rim_mean_radial_displacement", &rim_mean_radial_displacement},
+          {"rim_mean_radial_velocity", &rim_mean_radial_velocity},
+          {"rim_mean_radial_acceleration", &rim_mean_radial_acceleration},
+          {"rim_min_hoop_stress", &rim_min_hoop_stress},
+          {"dt", &dt}};
+}
+
+namespace {
+
+void check_problem(const Problem& p, const SolverOptions& o) {
+  const std::size_t nn = p.mesh.node_count();
+  if (p.mesh.element_count() == 0 || nn == 0) throw std::invalid_argument("mesh: no elements");
+  if (p.mesh.y.size() != nn) throw std::invalid_argument("mesh: x and y differ in size");
+  for (const auto* v : {&p.fixed_x, &p.fixed_y})
+    if (!v->empty() && v->size() != nn)
+      throw std::invalid_argument("constraints: one flag per node expected");
+  for (const auto* v : {&p.initial_vx, &p.initial_vy})
+    if (!v->empty() && v->size() != nn)
+      throw std::invalid_argument("initial velocity: one value per node expected");
+  if (!(o.cfl > 0 && o.cfl < 1)) throw std::invalid_argument("cfl: must be in (0, 1)");
+  if (!(o.end_time_s > 0)) throw std::invalid_argument("end_time: must be > 0");
+  if (!(o.history_interval_s > 0)) throw std::invalid_argument("history_interval: must be > 0");
+  if (o.threads < 1) throw std::invalid_argument("threads: must be >= 1");
+}
+
+ElementGeometry build_geometry(const Mesh& mesh) {
+  const std::size_t ne = mesh.element_count();
+  ElementGeometry g;
+  for (auto* v : {&g.node0, &g.node1, &g.node2}) v->resize(ne);
+  for (auto* v : {&g.dm_inv_xx, &g.dm_inv_xy, &g.dm_inv_yx, &g.dm_inv_yy, &g.area0})
+    v->resize(ne);
+  for (std::size_t e = 0; e < ne; ++e) {
+    const auto& t = mesh.triangles[e];
+    g.node0[e] = t[0], g.node1[e] = t[1], g.node2[e] = t[2];
+    const double a = mesh.x[t[1]] - mesh.x[t[0]], b = mesh.x[t[2]] - mesh.x[t[0]];
+    const double c = mesh.y[t[1]] - mesh.y[t[0]], d = mesh.y[t[2]] - mesh.y[t[0]];
+    const double det = a * d - b * c;  // Dm = [[a, b], [c, d]]
+    g.dm_inv_xx[e] = d / det, g.dm_inv_xy[e] = -b / det;
+    g.dm_inv_yx[e] = -c / det, g.dm_inv_yy[e] = a / det;
+    g.area0[e] = 0.5 * det;
+  }
+  return g;
+}
+
+// Stops at which a step must land exactly: history samples, frames, the end of the pulse.
+struct Schedule {
+  double history, output, end;
+  int64_t next_history = 1, next_output = 1;
+  double next_history_time() const { return next_history * history; }
+  double next_output_time() const { return output > 0 ? next_output * output : end; }
+};
+
+std::string describe_failure(const KernelTotals& k, double t, int64_t steps) {
+  char buf[256];
+  std::snprintf(buf, sizeof buf, "%s in element %lld at t = %.6g ns (step %lld): J = %.6g",
+                std::isfinite(k.bad_j) ? "element inversion (J <= 0)" : "non-finite state",
+                static_cast<long long>(k.bad_element), t * 1e9, static_cast<long long>(steps),
+                k.bad_j);
+  return buf;
+}
+
+}  // namespace
+
+RunResult run_simulation(const Problem& problem, const SolverOptions& options,
+                         const RunControl& control) {
+  check_problem(problem, options);
+  const auto wall_start = std::chrono::steady_clock::now();
+  const Mesh& mesh = problem.mesh;
+  const std::size_t nn = mesh.node_count();
+  const std::size_t ne = mesh.element_count();
+  const int threads = options.threads;
+
+  const ElementGeometry geometry = build_geometry(mesh);
+  const NodeCorners adjacency = build_node_corners(geometry, nn);
+  ElementState elements;
+  elements.resize(ne);
+  const Diagnostics diagnostics(problem, geometry, options.modes);
+
+  // Lumped (row-sum) mass: rho0 A_e / 3 to each node.
+  std::vector<double> mass(nn, 0.0);
+  for (std::size_t e = 0; e < ne; ++e)
+    for (int32_t i : mesh.triangles[e]) mass[i] += problem.material.density_kg_m3 * geometry.area0[e] / 3.0;
+
+  std::vector<double> x = mesh.x, y = mesh.y;
+  std::vector<double> vx(nn, 0.0), vy(nn, 0.0), ax(nn, 0.0), ay(nn, 0.0);
+  std::vector<double> fx(nn), fy(nn);
+  if (!problem.initial_vx.empty()) vx = problem.initial_vx;
+  if (!problem.initial_vy.empty()) vy = problem.initial_vy;
+  std::vector<uint8_t> free_x(nn, 1), free_y(nn, 1);
+  for (std::size_t i = 0; i < nn; ++i) {
+    if (!problem.fixed_x.empty() && problem.fixed_x[i]) free_x[i] = 0, vx[i] = 0;
+    if (!problem.fixed_y.empty() && problem.fixed_y[i]) free_y[i] = 0, vy[i] = 0;
+  }
+
+  // Follower pressure: loaded edges and the nodes they touch.
+  const auto& loaded_edges = problem.loaded_edges.empty() && problem.load_all_boundary
+                                 ? mesh.boundary_edges
+                                 : problem.loaded_edges;
+  std::vector<int32_t> loaded_nodes;
+  for (const auto& edge : loaded_edges) loaded_nodes.insert(loaded_nodes.end(), edge.begin(), edge.end());
+  std::sort(loaded_nodes.begin(), loaded_nodes.end());
+  loaded_nodes.erase(std::unique(loaded_nodes.begin(), loaded_nodes.end()), loaded_nodes.end());
+  std::vector<double> fext_x(nn, 0.0), fext_y(nn, 0.0);
+  std::vector<double> fext_old_x(loaded_nodes.size()), fext_old_y(loaded_nodes.size());
+  std::vector<double> x_old(loaded_nodes.size()), y_old(loaded_nodes.size());
+
+  // Force on node i = p |e| n_inward, half to each end; body on the left of (a -> b), so the
+  // inward normal times the length is the edge vector turned by +90 degrees.
+  auto apply_follower_pressure = [&](double t) {
+    for (int32_t i : loaded_nodes) fext_x[i] = 0.0, fext_y[i] = 0.0;
+    const double p = problem.load.at(t);
+    if (p == 0.0) return;
+    for (const auto& [a, b] : loaded_edges) {
+      const double hx = -0.5 * p * (y[b] - y[a]), hy = 0.5 * p * (x[b] - x[a]);
+      fext_x[a] += hx, fext_y[a] += hy, fext_x[b] += hx, fext_y[b] += hy;
+    }
+  };
+
+  KernelParams params;
+  params.kappa = problem.material.bulk_modulus_Pa;
+  params.tait_n = problem.material.tait_n();
+  params.mu = problem.material.shear_modulus_Pa;
+  params.rho0 = problem.material.density_kg_m3;
+  params.c1 = problem.viscosity.c1;
+  params.c2 = problem.viscosity.c2;
+  params.viscosity = problem.viscosity.enabled;
+
+  // Internal + external forces at the current positions -> accelerations. Each thread owns a
+  // fixed range of elements and then of nodes; partial totals are combined in thread order, so
+  // results depend only on the thread count.
+  std::vector<KernelTotals> partial(threads);
+  auto evaluate = [&](double t, double dt) {
+    params.dt = dt;
+    apply_follower_pressure(t);
+    auto work = [&](int tid) {
+      const std::size_t e0 = ne * tid / threads, e1 = ne * (tid + 1) / threads;
+      partial[tid] = KernelTotals{};
+      compute_element_forces(geometry, x.data(), y.data(), params, e0, e1, elements, partial[tid]);
+    };
+    auto gather = [&](int tid) {
+      const std::size_t n0 = nn * tid / threads, n1 = nn * (tid + 1) / threads;
+      gather_nodal_forces(adjacency, elements, n0, n1, fx.data(), fy.data());
+      for (std::size_t i = n0; i < n1; ++i) {
+        ax[i] = free_x[i] * (fx[i] + fext_x[i]) / mass[i];
+        ay[i] = free_y[i] * (fy[i] + fext_y[i]) / mass[i];
+      }
+    };
+    if (threads == 1) {
+      work(0);
+      gather(0);
+    } else {
+#pragma omp parallel num_threads(threads)
+      {
+        const int tid = omp_get_thread_num();
+        work(tid);
+#pragma omp barrier
+        gather(tid);
+      }
+    }
+    KernelTotals total;
+    for (const auto& k : partial) {
+      total.min_step_sq = std::min(total.min_step_sq, k.min_step_sq);
+      total.dissipation += k.dissipation;
+      if (total.bad_element < 0 && k.bad_element >= 0) total.bad_element = k.bad_element, total.bad_j = k.bad_j;
+    }
+    return total;
+  };
+
+  RunResult result;
+  const NodalView view{x.data(), y.data(), vx.data(), vy.data(), ax.data(), ay.data(), mass.data()};
+  double t = 0.0, dissipated = 0.0, external_work = 0.0;
+  int64_t steps = 0;
+  KernelTotals totals = evaluate(0.0, 0.0);
+  if (totals.bad_element >= 0) {
+    result.status = RunStatus::kFailed;
+    result.error = describe_failure(totals, 0.0, 0);
+    return result;
+  }
+  double dt_stable = options.cfl * std::sqrt(totals.min_step_sq);
+  result.min_dt_s = result.max_dt_s = dt_stable;
+  diagnostics.sample(view, elements, t, dt_stable, dissipated, external_work, result.history);
+  if (options.output_interval_s > 0 && control.on_frame) {
+    control.on_frame(diagnostics.frame(view, elements, t));
+    ++result.frames_written;
+  }
+
+  Schedule schedule{options.history_interval_s, options.output_interval_s, options.end_time_s};
+  const double pulse_end = problem.load.end_s();
+  const double tiny = 1e-9 * dt_stable;
+  Progress progress{0.0, options.end_time_s, 0, dt_stable};
+  double last_frame_time = 0.0;
+
+  while (t < options.end_time_s - tiny) {
+    if (control.cancel && control.cancel->load(std::memory_order_relaxed)) {
+      result.status = RunStatus::kCancelled;
+      break;
+    }
+    if (options.max_steps > 0 && steps >= options.max_steps) break;
+    // Land exactly on the next sample, frame, pulse end or end time.
+    double stop = std::min({schedule.next_history_time(), schedule.next_output_time(), options.end_time_s});
+    if (t < pulse_end - tiny) stop = std::min(stop, pulse_end);
+    const double dt = (stop - t <= dt_stable + tiny) ? stop - t : dt_stable;
+
+    // Predictor: x+ = x + dt v + dt^2/2 a; v* = v + dt/2 a.
+    for (std::size_t k = 0; k < loaded_nodes.size(); ++k) {
+      const int32_t i = loaded_nodes[k];
+      x_old[k] = x[i], y_old[k] = y[i], fext_old_x[k] = fext_x[i], fext_old_y[k] = fext_y[i];
+    }
+    for (std::size_t i = 0; i < nn; ++i) {
+      x[i] += dt * vx[i] + 0.5 * dt * dt * ax[i];
+      y[i] += dt * vy[i] + 0.5 * dt * dt * ay[i];
+      vx[i] += 0.5 * dt * ax[i];
+      vy[i] += 0.5 * dt * ay[i];
+    }
+    t = (stop - t <= dt_stable + tiny) ? stop : t + dt;
+    totals = evaluate(t, dt);
+    ++steps;
+    if (totals.bad_element >= 0) {
+      result.status = RunStatus::kFailed;
+      result.error = describe_failure(totals, t, steps);
+      break;
+    }
+    // Corrector: v+ = v* + dt/2 a+.
+    for (std::size_t i = 0; i < nn; ++i) {
+      vx[i] += 0.5 * dt * ax[i];
+      vy[i] += 0.5 * dt * ay[i];
+    }
+    // Work booked as the integrator sees it: forces times displacement increments,
+    // trapezoidal in time.
+    for (std::size_t k = 0; k < loaded_nodes.size(); ++k) {
+      const int32_t i = loaded_nodes[k];
+      external_work += 0.5 * ((fext_old_x[k] + fext_x[i]) * (x[i] - x_old[k]) +
+                              (fext_old_y[k] + fext_y[i]) * (y[i] - y_old[k]));
+    }
+    dissipated += totals.dissipation;
+
+    dt_stable = options.cfl * std::sqrt(totals.min_step_sq);
+    result.min_dt_s = std::min(result.min_dt_s, dt_stable);
+    result.max_dt_s = std::max(result.max_dt_s, dt_stable);
+    if (!(dt_stable > options.end_time_s * 1e-12)) {
+      result.status = RunStatus::kFailed;
+      char buf[160];
+      std::snprintf(buf, sizeof buf, "stable time step collapsed to %.3g s at t = %.6g ns (step %lld)",
+                    dt_stable, t * 1e9, static_cast<long long>(steps));
+      result.error = buf;
+      break;
+    }
+
+    if (t >= schedule.next_history_time() - tiny) {
+      while (schedule.next_history_time() <= t + tiny) ++schedule.next_history;
+      diagnostics.sample(view, elements, t, dt_stable, dissipated, external_work, result.history);
+      if (!std::isfinite(result.history.kinetic_energy.back())) {
+        result.status = RunStatus::kFailed;
+        result.error = "non-finite kinetic energy at t = " + std::to_string(t * 1e9) + " ns";
+        break;
+      }
+    }
+    if (options.output_interval_s > 0 && t >= schedule.next_output_time() - tiny) {
+      while (schedule.next_output_time() <= t + tiny) ++schedule.next_output;
+      if (control.on_frame) {
+        control.on_frame(diagnostics.frame(view, elements, t));
+        ++result.frames_written;
+        last_frame_time = t;
+      }
+    }
+    if (control.on_progress) {
+      progress.time_s = t, progress.steps = steps, progress.dt_s = dt_stable;
+      control.on_progress(progress);
+    }
+  }
+
+  // The final state is always in the history and (when frames are on) in the last frame.
+  if (result.history.time.back() < t - tiny && result.status != RunStatus::kFailed)
+    diagnostics.sample(view, elements, t, dt_stable, dissipated, external_work, result.history);
+  if (options.output_interval_s > 0 && control.on_frame && last_frame_time < t - tiny && steps > 0 &&
+      result.status != RunStatus::kFailed) {
+    control.on_frame(diagnostics.frame(view, elements, t));
+    ++result.frames_written;
+  }
+  result.steps = steps;
+  result.wall_time_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
+  return result;
+}
+
+}  // namespace softshock

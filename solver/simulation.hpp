@@ -1,0 +1,84 @@
+// The explicit Lagrangian run: central differences over the element kernels, with
+// diagnostics sampled at the history interval and field frames at the output interval.
+#pragma once
+
+#include <atomic>
+#include <cstdint>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "model.hpp"
+
+namespace softshock {
+
+// Time series sampled every history interval (SoA; one entry per sample).
+struct History {
+  std::vector<double> time;                  // s
+  std::vector<double> kinetic_energy;        // J per metre of thickness
+  std::vector<double> elastic_energy;        // J/m, stored W(F)
+  std::vector<double> dissipated_energy;     // J/m, artificial viscosity
+  std::vector<double> external_work;         // J/m, follower pressure
+  std::vector<double> abar;                  // (max r - min r) / R0 over the outer boundary
+  std::vector<double> center_mean_stress;    // Pa, area-weighted over the centre region
+  std::vector<double> rim_mean_radial_displacement;  // m
+  std::vector<double> rim_mean_radial_velocity;      // m/s
+  std::vector<double> rim_mean_radial_acceleration;  // m/s^2
+  std::vector<double> rim_min_hoop_stress;   // Pa, most negative hoop stress of rim elements
+  std::vector<double> dt;                    // s, the stable step in force at the sample
+  // Fourier amplitudes of the rim radial displacement / R0: modes[k][m], m = 0..M.
+  std::vector<std::vector<double>> modes;
+
+  std::size_t size() const { return time.size(); }
+  // Names and columns of the scalar series, in a fixed order (for writers and clients).
+  std::vector<std::pair<std::string, const std::vector<double>*>> columns() const;
+};
+
+// Fields at one instant: nodal vectors and per-element scalars.
+struct FieldFrame {
+  double time_s = 0;
+  std::vector<double> displacement;  // N x 2, interleaved (ux, uy), m
+  std::vector<double> velocity;      // N x 2, m/s
+  std::vector<double> J;             // per element
+  std::vector<double> mean_stress;   // Pa, tension positive (includes viscous stress)
+  std::vector<double> radial_stress;  // Pa, sigma_rr in the current polar frame
+  std::vector<double> hoop_stress;    // Pa, sigma_tt
+  std::vector<double> von_mises;      // Pa (plane strain, includes sigma_zz)
+};
+
+struct Progress {
+  double time_s = 0;
+  double end_time_s = 0;
+  int64_t steps = 0;
+  double dt_s = 0;
+  double fraction() const { return end_time_s > 0 ? time_s / end_time_s : 0; }
+};
+
+enum class RunStatus { kCompleted, kCancelled, kFailed };
+
+struct RunResult {
+  RunStatus status = RunStatus::kCompleted;
+  std::string error;  // for kFailed: time, element and cause
+  History history;
+  int64_t steps = 0;
+  double wall_time_s = 0;
+  double min_dt_s = 0, max_dt_s = 0;
+  std::size_t frames_written = 0;
+};
+
+struct RunControl {
+  // Called after every step; keep it cheap (the caller throttles any output).
+  std::function<void(const Progress&)> on_progress;
+  // Called for each field frame (t = 0, every output interval, and the final state).
+  std::function<void(const FieldFrame&)> on_frame;
+  // Checked every step; when set the run stops with kCancelled.
+  const std::atomic<bool>* cancel = nullptr;
+};
+
+// Runs the problem to options.end_time_s. Never throws for physical failures (element
+// inversion, non-finite values): those return kFailed with a message naming time, element and
+// cause. Throws std::invalid_argument for an inconsistent Problem (sizes, empty mesh).
+RunResult run_simulation(const Problem& problem, const SolverOptions& options,
+                         const RunControl& control = {});
+
+}  // namespace softshock
