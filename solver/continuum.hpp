@@ -17,10 +17,14 @@ inline Mat2 deformation_gradient(double e1x, double e1y, double e2x, double e2y,
           e1y * dm_inv[0] + e2y * dm_inv[2], e1y * dm_inv[1] + e2y * dm_inv[3]};
 }
 
-inline double det(const Mat2& f) { return f[0] * f[3] - f[1] * f[2]; }
+inline double det(const Mat2& f) {
+  return f[0] * f[3] - f[1] * f[2];
+}
 
 // Cofactor J F^-T (in-plane block; the zz entry is J).
-inline Mat2 cofactor(const Mat2& f) { return {f[3], -f[2], -f[1], f[0]}; }
+inline Mat2 cofactor(const Mat2& f) {
+  return {f[3], -f[2], -f[1], f[0]};
+}
 
 // I1 = tr(F^T F) of the 3x3 plane-strain F (the out-of-plane 1 included).
 inline double first_invariant(const Mat2& f) {
@@ -38,7 +42,9 @@ inline double tait_energy(double kappa, double n, double j, double j_pow_minus_n
 }
 
 // Tangent bulk modulus K(J) = kappa J^-n.
-inline double tait_bulk_modulus(double kappa, double j_pow_minus_n) { return kappa * j_pow_minus_n; }
+inline double tait_bulk_modulus(double kappa, double j_pow_minus_n) {
+  return kappa * j_pow_minus_n;
+}
 
 // Neo-Hookean deviatoric energy mu/2 (I1 J^-2/3 - 3).
 inline double neo_hookean_energy(double mu, double i1, double j_pow_minus_two_thirds) {
@@ -47,8 +53,8 @@ inline double neo_hookean_energy(double mu, double i1, double j_pow_minus_two_th
 
 // Elastic first Piola-Kirchhoff stress (in-plane block):
 // P = sigma_m cof(F) + mu J^-2/3 (F - I1/3 F^-T), with F^-T = cof(F) / J.
-inline Mat2 elastic_piola(const Mat2& f, const Mat2& cof, double j, double mean_stress,
-                          double mu, double j_pow_minus_two_thirds) {
+inline Mat2 elastic_piola(const Mat2& f, const Mat2& cof, double j, double mean_stress, double mu,
+                          double j_pow_minus_two_thirds) {
   const double a = mu * j_pow_minus_two_thirds;
   const double s = mean_stress - a * first_invariant(f) / (3.0 * j);
   return {s * cof[0] + a * f[0], s * cof[1] + a * f[1], s * cof[2] + a * f[2],
@@ -67,7 +73,10 @@ inline double smallest_altitude_sq(double e1x, double e1y, double e2x, double e2
   const double l1 = e1x * e1x + e1y * e1y;
   const double l2 = e2x * e2x + e2y * e2y;
   const double l3 = (e2x - e1x) * (e2x - e1x) + (e2y - e1y) * (e2y - e1y);
-  const double lmax = std::fmax(l1, std::fmax(l2, l3));
+  // Plain comparisons rather than std::fmax (whose NaN rules become a library call and stop
+  // the element loop vectorising); a NaN here belongs to an element flagged as invalid anyway.
+  const double l12 = l1 > l2 ? l1 : l2;
+  const double lmax = l12 > l3 ? l12 : l3;
   return twice_area * twice_area / lmax;
 }
 
@@ -91,8 +100,8 @@ inline Mat2 viscous_piola(const Mat2& f, const Mat2& f_prev, const Mat2& cof, do
   const double d00 = 2.0 * nu * (l00 - third_trace);
   const double d11 = 2.0 * nu * (l11 - third_trace);
   const double d01 = nu * (l01 + l10);
-  return {d00 * cof[0] + d01 * cof[2], d00 * cof[1] + d01 * cof[3],
-          d01 * cof[0] + d11 * cof[2], d01 * cof[1] + d11 * cof[3]};
+  return {d00 * cof[0] + d01 * cof[2], d00 * cof[1] + d01 * cof[3], d01 * cof[0] + d11 * cof[2],
+          d01 * cof[1] + d11 * cof[3]};
 }
 
 // Artificial viscosity nu = 3/4 (h rho0 / J) (c2 a - c1 h ln(J/J_prev) / dt), applied only

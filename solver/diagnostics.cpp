@@ -24,7 +24,8 @@ PolarFrame polar_frame(const Problem& problem) {
   const Mesh& mesh = problem.mesh;
   const auto origin = mesh_centroid(mesh);
   double sum = 0;
-  for (int32_t i : mesh.boundary_nodes) sum += std::hypot(mesh.x[i] - origin[0], mesh.y[i] - origin[1]);
+  for (int32_t i : mesh.boundary_nodes)
+    sum += std::hypot(mesh.x[i] - origin[0], mesh.y[i] - origin[1]);
   const auto n = mesh.boundary_nodes.size();
   return {origin, n ? sum / static_cast<double>(n) : 1.0};
 }

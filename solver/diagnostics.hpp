@@ -47,9 +47,9 @@ class Diagnostics {
   int modes_;
   std::array<double, 2> origin_{};
   double reference_radius_ = 0;
-  std::vector<int32_t> rim_nodes_;      // outer boundary loop
-  std::vector<double> rim_weight_;      // trapezoidal d(theta) weights, sum 2 pi
-  std::vector<double> rim_ref_radius_;  // reference distance from the origin
+  std::vector<int32_t> rim_nodes_;           // outer boundary loop
+  std::vector<double> rim_weight_;           // trapezoidal d(theta) weights, sum 2 pi
+  std::vector<double> rim_ref_radius_;       // reference distance from the origin
   std::vector<double> mode_cos_, mode_sin_;  // (M+1) x rim, row-major by mode
   std::vector<int32_t> center_elements_;
   std::vector<int32_t> rim_elements_;  // elements with an edge on the outer boundary

@@ -1,8 +1,17 @@
 #include "element_kernels.hpp"
 
+#include <algorithm>
 #include <cmath>
 
 #include "continuum.hpp"
+
+// glibc's libmvec has vector variants of exp and log; its headers announce them only under
+// -ffast-math, which would also assume no NaN and defeat the inversion check. Declaring the
+// variants here lets the branch-free loop below vectorise with IEEE semantics otherwise intact.
+extern "C" {
+__attribute__((simd("notinbranch"))) double exp(double) noexcept;
+__attribute__((simd("notinbranch"))) double log(double) noexcept;
+}
 
 namespace softshock {
 
@@ -10,6 +19,7 @@ void ElementState::resize(std::size_t elements) {
   for (auto* v : {&f_xx, &f_xy, &f_yx, &f_yy, &log_j, &pv_xx, &pv_xy, &pv_yx, &pv_yy}) {
     v->assign(elements, 0.0);
   }
+  for (auto* v : {&step_sq, &dissipation, &j}) v->assign(elements, 0.0);
   force_x.assign(3 * elements, 0.0);
   force_y.assign(3 * elements, 0.0);
   reset_to_reference();
@@ -23,76 +33,114 @@ void ElementState::reset_to_reference() {
   }
 }
 
-void compute_element_forces(const ElementGeometry& g, const double* x, const double* y,
-                            const KernelParams& p, std::size_t begin, std::size_t end,
-                            ElementState& s, KernelTotals& totals) {
+// Compiled for AVX2 and for the baseline ISA; the loader picks one at start-up.
+__attribute__((target_clones("avx2", "default"))) void compute_element_forces(
+    const ElementGeometry& g, const double* x, const double* y, const KernelParams& p,
+    std::size_t begin, std::size_t end, ElementState& s, KernelTotals& totals) {
   namespace cm = continuum;
   const std::size_t ne = g.size();
   const double n = p.tait_n;
   const bool lagged = p.viscosity && p.dt > 0;
-  double min_step_sq = totals.min_step_sq;
-  double dissipation = 0.0;
+  const double viscosity_on = lagged ? 1.0 : 0.0;
+  const double dt = lagged ? p.dt : 1.0;  // keeps the unused viscous branch finite
+  const double kappa = p.kappa, mu = p.mu, rho0 = p.rho0, c1 = p.c1, c2 = p.c2;
 
+  const int32_t* node0 = g.node0.data();
+  const int32_t* node1 = g.node1.data();
+  const int32_t* node2 = g.node2.data();
+  const double *dxx = g.dm_inv_xx.data(), *dxy = g.dm_inv_xy.data(), *dyx = g.dm_inv_yx.data(),
+               *dyy = g.dm_inv_yy.data(), *area0 = g.area0.data();
+  double *fxx = s.f_xx.data(), *fxy = s.f_xy.data(), *fyx = s.f_yx.data(), *fyy = s.f_yy.data();
+  double* log_j_prev = s.log_j.data();
+  double *pxx = s.pv_xx.data(), *pxy = s.pv_xy.data(), *pyx = s.pv_yx.data(), *pyy = s.pv_yy.data();
+  double *force_x = s.force_x.data(), *force_y = s.force_y.data();
+  double *step_sq_out = s.step_sq.data(), *dissipation_out = s.dissipation.data(),
+         *j_out = s.j.data();
+
+  // Edge vectors are gathered per block into small contiguous buffers (indexed loads do not
+  // vectorise well); the element loop then streams plain arrays. The loop body is branch-free
+  // and reduction-free (viscosity is selected, not skipped; totals are reduced afterwards), so
+  // it vectorises, exp and log included.
+  constexpr std::size_t kBlock = 256;
+  alignas(64) double edge1x[kBlock], edge1y[kBlock], edge2x[kBlock], edge2y[kBlock];
+  for (std::size_t block = begin; block < end; block += kBlock) {
+    const std::size_t count = std::min(kBlock, end - block);
+    for (std::size_t k = 0; k < count; ++k) {
+      const std::size_t e = block + k;
+      const int32_t a = node0[e], b = node1[e], c = node2[e];
+      edge1x[k] = x[b] - x[a], edge1y[k] = y[b] - y[a];
+      edge2x[k] = x[c] - x[a], edge2y[k] = y[c] - y[a];
+    }
+#pragma GCC ivdep
+    for (std::size_t k = 0; k < count; ++k) {
+      const std::size_t e = block + k;
+      const double e1x = edge1x[k], e1y = edge1y[k], e2x = edge2x[k], e2y = edge2y[k];
+      const cm::Mat2 dm_inv{dxx[e], dxy[e], dyx[e], dyy[e]};
+      const cm::Mat2 f = cm::deformation_gradient(e1x, e1y, e2x, e2y, dm_inv);
+      const double j = cm::det(f);
+      j_out[e] = j;
+      // One logarithm feeds J^-n, J^-2/3 and the viscosity's ln(J / J_prev).
+      const double log_j = ::log(j);
+      const double j_minus_n = ::exp(-n * log_j);
+      const double j_minus_23 = ::exp(-2.0 / 3.0 * log_j);
+      const double mean_stress = cm::tait_mean_stress(kappa, n, j_minus_n);
+      const cm::Mat2 cof = cm::cofactor(f);
+      const cm::Mat2 elastic = cm::elastic_piola(f, cof, j, mean_stress, mu, j_minus_23);
+
+      const double c_sq =
+          cm::longitudinal_speed_sq(cm::tait_bulk_modulus(kappa, j_minus_n), mu, rho0, j);
+      const double h_sq = cm::smallest_altitude_sq(e1x, e1y, e2x, e2y);
+      step_sq_out[e] = h_sq / c_sq;
+
+      // Viscosity only while the element is compressed (J < J_prev) and a step was taken.
+      const cm::Mat2 f_prev{fxx[e], fxy[e], fyx[e], fyy[e]};
+      const double log_j_ratio = log_j - log_j_prev[e];
+      const double compressing = log_j_ratio < 0.0 ? viscosity_on : 0.0;
+      const double nu = compressing * cm::artificial_viscosity(std::sqrt(h_sq), rho0, j, c1, c2,
+                                                               std::sqrt(c_sq), log_j_ratio, dt);
+      const cm::Mat2 pv = cm::viscous_piola(f, f_prev, cof, nu, dt);
+      // Work of the viscous stress over the step, trapezoidal in time: what the integrator sees
+      // as nodal viscous forces times the nodal displacement increments.
+      dissipation_out[e] =
+          viscosity_on * 0.5 * area0[e] *
+          ((pv[0] + pxx[e]) * (f[0] - f_prev[0]) + (pv[1] + pxy[e]) * (f[1] - f_prev[1]) +
+           (pv[2] + pyx[e]) * (f[2] - f_prev[2]) + (pv[3] + pyy[e]) * (f[3] - f_prev[3]));
+
+      fxx[e] = f[0], fxy[e] = f[1], fyx[e] = f[2], fyy[e] = f[3];
+      log_j_prev[e] = log_j;
+      pxx[e] = pv[0], pxy[e] = pv[1], pyx[e] = pv[2], pyy[e] = pv[3];
+
+      // Force on node k: -A0 P grad N_k; grad N1, grad N2 are the rows of Dm^-1.
+      const double p00 = elastic[0] + pv[0], p01 = elastic[1] + pv[1];
+      const double p10 = elastic[2] + pv[2], p11 = elastic[3] + pv[3];
+      const double a0 = area0[e];
+      const double f1x = -a0 * (p00 * dm_inv[0] + p01 * dm_inv[1]);
+      const double f1y = -a0 * (p10 * dm_inv[0] + p11 * dm_inv[1]);
+      const double f2x = -a0 * (p00 * dm_inv[2] + p01 * dm_inv[3]);
+      const double f2y = -a0 * (p10 * dm_inv[2] + p11 * dm_inv[3]);
+      force_x[e] = -(f1x + f2x), force_y[e] = -(f1y + f2y);
+      force_x[ne + e] = f1x, force_y[ne + e] = f1y;
+      force_x[2 * ne + e] = f2x, force_y[2 * ne + e] = f2y;
+    }
+  }
+
+  double min_step_sq = totals.min_step_sq, dissipation = 0.0;
+  bool all_valid = true;
   for (std::size_t e = begin; e < end; ++e) {
-    const int32_t a = g.node0[e], b = g.node1[e], c = g.node2[e];
-    const double e1x = x[b] - x[a], e1y = y[b] - y[a];
-    const double e2x = x[c] - x[a], e2y = y[c] - y[a];
-    const cm::Mat2 dm_inv{g.dm_inv_xx[e], g.dm_inv_xy[e], g.dm_inv_yx[e], g.dm_inv_yy[e]};
-    const cm::Mat2 f = cm::deformation_gradient(e1x, e1y, e2x, e2y, dm_inv);
-    const double j = cm::det(f);
-    if (!(j > 0.0) || !std::isfinite(j)) {  // inversion or NaN: report the first one
-      if (totals.bad_element < 0) totals.bad_element = static_cast<int64_t>(e), totals.bad_j = j;
-      continue;
-    }
-    // One logarithm feeds J^-n, J^-2/3 and the viscosity's ln(J / J_prev).
-    const double log_j = std::log(j);
-    const double j_minus_n = std::exp(-n * log_j);
-    const double j_minus_23 = std::exp(-2.0 / 3.0 * log_j);
-    const double mean_stress = cm::tait_mean_stress(p.kappa, n, j_minus_n);
-    const cm::Mat2 cof = cm::cofactor(f);
-    cm::Mat2 piola = cm::elastic_piola(f, cof, j, mean_stress, p.mu, j_minus_23);
-
-    const double c_sq =
-        cm::longitudinal_speed_sq(cm::tait_bulk_modulus(p.kappa, j_minus_n), p.mu, p.rho0, j);
-    const double h_sq = cm::smallest_altitude_sq(e1x, e1y, e2x, e2y);
-    min_step_sq = std::fmin(min_step_sq, h_sq / c_sq);
-
-    const cm::Mat2 f_prev{s.f_xx[e], s.f_xy[e], s.f_yx[e], s.f_yy[e]};
-    const double log_j_ratio = log_j - s.log_j[e];
-    cm::Mat2 pv{0.0, 0.0, 0.0, 0.0};
-    if (lagged && log_j_ratio < 0.0) {  // viscosity only while the element is compressed
-      const double h = std::sqrt(h_sq);
-      const double nu = cm::artificial_viscosity(h, p.rho0, j, p.c1, p.c2, std::sqrt(c_sq),
-                                                 log_j_ratio, p.dt);
-      pv = cm::viscous_piola(f, f_prev, cof, nu, p.dt);
-    }
-    if (lagged) {
-      // Work of the viscous stress over the step, trapezoidal in time: what the integrator
-      // sees as nodal viscous forces times the nodal displacement increments.
-      const double df0 = f[0] - f_prev[0], df1 = f[1] - f_prev[1], df2 = f[2] - f_prev[2],
-                   df3 = f[3] - f_prev[3];
-      dissipation += 0.5 * g.area0[e] *
-                     ((pv[0] + s.pv_xx[e]) * df0 + (pv[1] + s.pv_xy[e]) * df1 +
-                      (pv[2] + s.pv_yx[e]) * df2 + (pv[3] + s.pv_yy[e]) * df3);
-    }
-    for (int k = 0; k < 4; ++k) piola[k] += pv[k];
-
-    s.f_xx[e] = f[0], s.f_xy[e] = f[1], s.f_yx[e] = f[2], s.f_yy[e] = f[3];
-    s.log_j[e] = log_j;
-    s.pv_xx[e] = pv[0], s.pv_xy[e] = pv[1], s.pv_yx[e] = pv[2], s.pv_yy[e] = pv[3];
-
-    // Force on node k: -A0 P grad N_k; grad N1, grad N2 are the rows of Dm^-1.
-    const double a0 = g.area0[e];
-    const double f1x = -a0 * (piola[0] * dm_inv[0] + piola[1] * dm_inv[1]);
-    const double f1y = -a0 * (piola[2] * dm_inv[0] + piola[3] * dm_inv[1]);
-    const double f2x = -a0 * (piola[0] * dm_inv[2] + piola[1] * dm_inv[3]);
-    const double f2y = -a0 * (piola[2] * dm_inv[2] + piola[3] * dm_inv[3]);
-    s.force_x[e] = -(f1x + f2x), s.force_y[e] = -(f1y + f2y);
-    s.force_x[ne + e] = f1x, s.force_y[ne + e] = f1y;
-    s.force_x[2 * ne + e] = f2x, s.force_y[2 * ne + e] = f2y;
+    min_step_sq = step_sq_out[e] < min_step_sq ? step_sq_out[e] : min_step_sq;
+    dissipation += dissipation_out[e];
+    all_valid &= j_out[e] > 0.0;  // false for J <= 0 and for NaN
   }
   totals.min_step_sq = min_step_sq;
   totals.dissipation += dissipation;
+  if (!all_valid && totals.bad_element < 0) {  // rare: name the first offender
+    for (std::size_t e = begin; e < end; ++e) {
+      if (!(j_out[e] > 0.0)) {
+        totals.bad_element = static_cast<int64_t>(e), totals.bad_j = j_out[e];
+        break;
+      }
+    }
+  }
 }
 
 NodeCorners build_node_corners(const ElementGeometry& g, std::size_t nodes) {

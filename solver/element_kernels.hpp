@@ -19,11 +19,14 @@ struct ElementGeometry {
 
 // Element state carried from one force evaluation to the next.
 struct ElementState {
-  std::vector<double> f_xx, f_xy, f_yx, f_yy;  // F at the last evaluation (lags the viscosity)
-  std::vector<double> log_j;                   // ln J at the last evaluation
+  std::vector<double> f_xx, f_xy, f_yx, f_yy;      // F at the last evaluation (lags the viscosity)
+  std::vector<double> log_j;                       // ln J at the last evaluation
   std::vector<double> pv_xx, pv_xy, pv_yx, pv_yy;  // viscous P at the last evaluation
   // Nodal forces (acting on the nodes, = -f_int) of corners 0, 1, 2: corner-major, size 3E.
   std::vector<double> force_x, force_y;
+  // Per-element scratch of the last evaluation, reduced after the (reduction-free, hence
+  // vectorisable) element loop: h^2/c^2, dissipation increment, J.
+  std::vector<double> step_sq, dissipation, j;
   void resize(std::size_t elements);
   void reset_to_reference();  // F = I, ln J = 0, P_v = 0
 };
@@ -36,9 +39,9 @@ struct KernelParams {
 };
 
 struct KernelTotals {
-  double min_step_sq = 1e300;      // min over elements of h^2 / c^2 (s^2)
-  double dissipation = 0;          // trapezoidal P_v : dF increment over this step (J/m)
-  int64_t bad_element = -1;        // first element with J <= 0 or non-finite J
+  double min_step_sq = 1e300;  // min over elements of h^2 / c^2 (s^2)
+  double dissipation = 0;      // trapezoidal P_v : dF increment over this step (J/m)
+  int64_t bad_element = -1;    // first element with J <= 0 or non-finite J
   double bad_j = 0;
 };
 
@@ -55,7 +58,7 @@ struct NodeCorners {
 NodeCorners build_node_corners(const ElementGeometry& geometry, std::size_t nodes);
 
 // force[n] = sum of corner forces of node n, for nodes [begin, end); fixed summation order.
-void gather_nodal_forces(const NodeCorners& adjacency, const ElementState& state,
-                         std::size_t begin, std::size_t end, double* fx, double* fy);
+void gather_nodal_forces(const NodeCorners& adjacency, const ElementState& state, std::size_t begin,
+                         std::size_t end, double* fx, double* fy);
 
 }  // namespace softshock

@@ -9,8 +9,8 @@
 namespace softshock {
 
 struct Mesh {
-  std::vector<double> x, y;                          // reference node coordinates, m
-  std::vector<std::array<int32_t, 3>> triangles;     // node indices, counter-clockwise
+  std::vector<double> x, y;                            // reference node coordinates, m
+  std::vector<std::array<int32_t, 3>> triangles;       // node indices, counter-clockwise
   std::vector<std::array<int32_t, 2>> boundary_edges;  // every boundary edge, body on the left
   std::vector<int32_t> boundary_nodes;  // the outer boundary loop, counter-clockwise, no repeat
 

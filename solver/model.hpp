@@ -11,10 +11,10 @@
 namespace softshock {
 
 struct Material {
-  double density_kg_m3 = 1000.0;   // rho0
-  double bulk_modulus_Pa = 2e9;    // kappa
-  double shear_modulus_Pa = 5e3;   // mu
-  double tait_gamma = 6.15;        // gamma-bar; the Tait exponent is n = gamma-bar + 1
+  double density_kg_m3 = 1000.0;  // rho0
+  double bulk_modulus_Pa = 2e9;   // kappa
+  double shear_modulus_Pa = 5e3;  // mu
+  double tait_gamma = 6.15;       // gamma-bar; the Tait exponent is n = gamma-bar + 1
   double tait_n() const { return tait_gamma + 1.0; }
 };
 
@@ -31,9 +31,9 @@ struct PressurePulse {
   PulseShape shape = PulseShape::kSquare;
   double pressure_Pa = 2e9;
   double duration_s = 8e-9;
-  double at(double t_s) const;   // p(t), Pa
-  double end_s() const;          // time after which p == 0
-  double impulse_Pa_s() const;   // integral of p over time
+  double at(double t_s) const;  // p(t), Pa
+  double end_s() const;         // time after which p == 0
+  double impulse_Pa_s() const;  // integral of p over time
 };
 
 // Everything a run needs besides the numerical options.

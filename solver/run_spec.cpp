@@ -45,7 +45,8 @@ v1::RunSpec parse_spec_json(const std::string& json) {
   pb::util::JsonParseOptions options;
   options.ignore_unknown_fields = false;
   const auto status = pb::util::JsonStringToMessage(json, &spec, options);
-  if (!status.ok()) throw SpecError("spec", "invalid JSON for RunSpec: " + std::string(status.message()));
+  if (!status.ok())
+    throw SpecError("spec", "invalid JSON for RunSpec: " + std::string(status.message()));
   return spec;
 }
 
@@ -142,8 +143,9 @@ void validate_spec(const v1::RunSpec& s, const SpecLimits& limits) {
   require(std::isfinite(v.c2()) && v.c2() >= 0, "viscosity.c2", "must be a finite number >= 0");
 
   const auto& l = s.load();
-  require(std::isfinite(l.pressure()) && l.pressure() >= 0 && l.pressure() <= 100 * m.bulk_modulus(),
-          "load.pressure", "must be a finite number >= 0 and <= 100 x material.bulk_modulus");
+  require(
+      std::isfinite(l.pressure()) && l.pressure() >= 0 && l.pressure() <= 100 * m.bulk_modulus(),
+      "load.pressure", "must be a finite number >= 0 and <= 100 x material.bulk_modulus");
   require_finite_positive(l.duration(), "load.duration");
   require(v1::PulseShape_IsValid(l.shape()) && l.shape() != v1::PULSE_SHAPE_UNSPECIFIED,
           "load.shape", "must be SQUARE, GAUSSIAN, LINEAR or QUADRATIC");
@@ -151,8 +153,7 @@ void validate_spec(const v1::RunSpec& s, const SpecLimits& limits) {
   const auto& r = s.run();
   require(std::isfinite(r.end_time()) && r.end_time() > 0 && r.end_time() <= limits.max_end_time_s,
           "run.end_time", "must be > 0 and <= " + fmt(limits.max_end_time_s) + " s");
-  require(std::isfinite(r.cfl()) && r.cfl() > 0 && r.cfl() < 1, "run.cfl",
-          "must be > 0 and < 1");
+  require(std::isfinite(r.cfl()) && r.cfl() > 0 && r.cfl() < 1, "run.cfl", "must be > 0 and < 1");
   require(std::isfinite(r.output_interval()) && r.output_interval() >= 0, "run.output_interval",
           "must be >= 0 (0 = no field frames)");
   require(r.output_interval() == 0 || r.end_time() / r.output_interval() <= limits.max_frames,

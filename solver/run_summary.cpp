@@ -50,9 +50,9 @@ RunSummary summarize(const Problem& problem, const RunResult& r) {
   s.wall_time_s = r.wall_time_s;
   s.groups = nondimensional_groups(problem);
   s.min_dt_s = r.min_dt_s, s.max_dt_s = r.max_dt_s;
-  s.status = r.status == RunStatus::kCompleted ? "completed"
+  s.status = r.status == RunStatus::kCompleted   ? "completed"
              : r.status == RunStatus::kCancelled ? "cancelled"
-                                                  : "failed";
+                                                 : "failed";
   s.error = r.error;
   const std::size_t n = h.size();
   if (n == 0) return s;

@@ -22,15 +22,15 @@ struct RunSummary {
   double wall_time_s = 0;
   double end_time_s = 0;
   NondimensionalGroups groups;
-  double energy_injected_J_per_m = 0;        // external work at the end of the run
-  double energy_after_pulse_J_per_m = 0;     // kinetic + elastic when the pulse has ended
-  double max_abar_first_cycle = 0;           // max A-bar over 0 <= t-bar <= 4
-  double max_abar = 0;                       // over the whole run
-  int dominant_mode_end = 0;                 // largest amplitude among modes >= 2 at the end
-  double shock_at_center_s = -1;             // focusing: first minimum of centre mean stress
-  std::vector<double> rim_reflections_s;     // peaks of the outward rim acceleration
+  double energy_injected_J_per_m = 0;     // external work at the end of the run
+  double energy_after_pulse_J_per_m = 0;  // kinetic + elastic when the pulse has ended
+  double max_abar_first_cycle = 0;        // max A-bar over 0 <= t-bar <= 4
+  double max_abar = 0;                    // over the whole run
+  int dominant_mode_end = 0;              // largest amplitude among modes >= 2 at the end
+  double shock_at_center_s = -1;          // focusing: first minimum of centre mean stress
+  std::vector<double> rim_reflections_s;  // peaks of the outward rim acceleration
   double min_dt_s = 0, max_dt_s = 0;
-  std::string status;                        // "completed", "cancelled", "failed"
+  std::string status;  // "completed", "cancelled", "failed"
   std::string error;
 };
 

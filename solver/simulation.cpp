@@ -50,8 +50,7 @@ ElementGeometry build_geometry(const Mesh& mesh) {
   const std::size_t ne = mesh.element_count();
   ElementGeometry g;
   for (auto* v : {&g.node0, &g.node1, &g.node2}) v->resize(ne);
-  for (auto* v : {&g.dm_inv_xx, &g.dm_inv_xy, &g.dm_inv_yx, &g.dm_inv_yy, &g.area0})
-    v->resize(ne);
+  for (auto* v : {&g.dm_inv_xx, &g.dm_inv_xy, &g.dm_inv_yx, &g.dm_inv_yy, &g.area0}) v->resize(ne);
   for (std::size_t e = 0; e < ne; ++e) {
     const auto& t = mesh.triangles[e];
     g.node0[e] = t[0], g.node1[e] = t[1], g.node2[e] = t[2];
@@ -102,7 +101,8 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
   // Lumped (row-sum) mass: rho0 A_e / 3 to each node.
   std::vector<double> mass(nn, 0.0);
   for (std::size_t e = 0; e < ne; ++e)
-    for (int32_t i : mesh.triangles[e]) mass[i] += problem.material.density_kg_m3 * geometry.area0[e] / 3.0;
+    for (int32_t i : mesh.triangles[e])
+      mass[i] += problem.material.density_kg_m3 * geometry.area0[e] / 3.0;
 
   std::vector<double> x = mesh.x, y = mesh.y;
   std::vector<double> vx(nn, 0.0), vy(nn, 0.0), ax(nn, 0.0), ay(nn, 0.0);
@@ -120,7 +120,8 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
                                  ? mesh.boundary_edges
                                  : problem.loaded_edges;
   std::vector<int32_t> loaded_nodes;
-  for (const auto& edge : loaded_edges) loaded_nodes.insert(loaded_nodes.end(), edge.begin(), edge.end());
+  for (const auto& edge : loaded_edges)
+    loaded_nodes.insert(loaded_nodes.end(), edge.begin(), edge.end());
   std::sort(loaded_nodes.begin(), loaded_nodes.end());
   loaded_nodes.erase(std::unique(loaded_nodes.begin(), loaded_nodes.end()), loaded_nodes.end());
   std::vector<double> fext_x(nn, 0.0), fext_y(nn, 0.0);
@@ -184,7 +185,8 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
     for (const auto& k : partial) {
       total.min_step_sq = std::min(total.min_step_sq, k.min_step_sq);
       total.dissipation += k.dissipation;
-      if (total.bad_element < 0 && k.bad_element >= 0) total.bad_element = k.bad_element, total.bad_j = k.bad_j;
+      if (total.bad_element < 0 && k.bad_element >= 0)
+        total.bad_element = k.bad_element, total.bad_j = k.bad_j;
     }
     return total;
   };
@@ -220,7 +222,8 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
     }
     if (options.max_steps > 0 && steps >= options.max_steps) break;
     // Land exactly on the next sample, frame, pulse end or end time.
-    double stop = std::min({schedule.next_history_time(), schedule.next_output_time(), options.end_time_s});
+    double stop =
+        std::min({schedule.next_history_time(), schedule.next_output_time(), options.end_time_s});
     if (t < pulse_end - tiny) stop = std::min(stop, pulse_end);
     const double dt = (stop - t <= dt_stable + tiny) ? stop - t : dt_stable;
 
@@ -263,8 +266,9 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
     if (!(dt_stable > options.end_time_s * 1e-12)) {
       result.status = RunStatus::kFailed;
       char buf[160];
-      std::snprintf(buf, sizeof buf, "stable time step collapsed to %.3g s at t = %.6g ns (step %lld)",
-                    dt_stable, t * 1e9, static_cast<long long>(steps));
+      std::snprintf(buf, sizeof buf,
+                    "stable time step collapsed to %.3g s at t = %.6g ns (step %lld)", dt_stable,
+                    t * 1e9, static_cast<long long>(steps));
       result.error = buf;
       break;
     }
@@ -295,8 +299,8 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
   // The final state is always in the history and (when frames are on) in the last frame.
   if (result.history.time.back() < t - tiny && result.status != RunStatus::kFailed)
     diagnostics.sample(view, elements, t, dt_stable, dissipated, external_work, result.history);
-  if (options.output_interval_s > 0 && control.on_frame && last_frame_time < t - tiny && steps > 0 &&
-      result.status != RunStatus::kFailed) {
+  if (options.output_interval_s > 0 && control.on_frame && last_frame_time < t - tiny &&
+      steps > 0 && result.status != RunStatus::kFailed) {
     control.on_frame(diagnostics.frame(view, elements, t));
     ++result.frames_written;
   }

@@ -14,18 +14,18 @@ namespace softshock {
 
 // Time series sampled every history interval (SoA; one entry per sample).
 struct History {
-  std::vector<double> time;                  // s
-  std::vector<double> kinetic_energy;        // J per metre of thickness
-  std::vector<double> elastic_energy;        // J/m, stored W(F)
-  std::vector<double> dissipated_energy;     // J/m, artificial viscosity
-  std::vector<double> external_work;         // J/m, follower pressure
-  std::vector<double> abar;                  // (max r - min r) / R0 over the outer boundary
-  std::vector<double> center_mean_stress;    // Pa, area-weighted over the centre region
+  std::vector<double> time;                          // s
+  std::vector<double> kinetic_energy;                // J per metre of thickness
+  std::vector<double> elastic_energy;                // J/m, stored W(F)
+  std::vector<double> dissipated_energy;             // J/m, artificial viscosity
+  std::vector<double> external_work;                 // J/m, follower pressure
+  std::vector<double> abar;                          // (max r - min r) / R0 over the outer boundary
+  std::vector<double> center_mean_stress;            // Pa, area-weighted over the centre region
   std::vector<double> rim_mean_radial_displacement;  // m
   std::vector<double> rim_mean_radial_velocity;      // m/s
   std::vector<double> rim_mean_radial_acceleration;  // m/s^2
-  std::vector<double> rim_min_hoop_stress;   // Pa, most negative hoop stress of rim elements
-  std::vector<double> dt;                    // s, the stable step in force at the sample
+  std::vector<double> rim_min_hoop_stress;  // Pa, most negative hoop stress of rim elements
+  std::vector<double> dt;                   // s, the stable step in force at the sample
   // Fourier amplitudes of the rim radial displacement / R0: modes[k][m], m = 0..M.
   std::vector<std::vector<double>> modes;
 
@@ -37,10 +37,10 @@ struct History {
 // Fields at one instant: nodal vectors and per-element scalars.
 struct FieldFrame {
   double time_s = 0;
-  std::vector<double> displacement;  // N x 2, interleaved (ux, uy), m
-  std::vector<double> velocity;      // N x 2, m/s
-  std::vector<double> J;             // per element
-  std::vector<double> mean_stress;   // Pa, tension positive (includes viscous stress)
+  std::vector<double> displacement;   // N x 2, interleaved (ux, uy), m
+  std::vector<double> velocity;       // N x 2, m/s
+  std::vector<double> J;              // per element
+  std::vector<double> mean_stress;    // Pa, tension positive (includes viscous stress)
   std::vector<double> radial_stress;  // Pa, sigma_rr in the current polar frame
   std::vector<double> hoop_stress;    // Pa, sigma_tt
   std::vector<double> von_mises;      // Pa (plane strain, includes sigma_zz)

@@ -20,7 +20,9 @@
 namespace {
 
 std::atomic<bool> g_cancel{false};
-extern "C" void on_signal(int) { g_cancel.store(true); }
+extern "C" void on_signal(int) {
+  g_cancel.store(true);
+}
 
 int usage(const char* msg) {
   if (msg) std::fprintf(stderr, "softshock-solve: %s\n", msg);
@@ -44,15 +46,15 @@ class ProgressReporter {
       if (now - last_ < std::chrono::milliseconds(200) && f < 1.0) return;
       last_ = now;
       const int width = 40, filled = static_cast<int>(f * width);
-      std::fprintf(stderr, "\r[%.*s%*s] %5.1f%%  t = %7.2f ns  step %lld  dt = %.3g ps ",
-                   filled, "########################################", width - filled, "",
-                   100 * f, p.time_s * 1e9, static_cast<long long>(p.steps), p.dt_s * 1e12);
+      std::fprintf(stderr, "\r[%.*s%*s] %5.1f%%  t = %7.2f ns  step %lld  dt = %.3g ps ", filled,
+                   "########################################", width - filled, "", 100 * f,
+                   p.time_s * 1e9, static_cast<long long>(p.steps), p.dt_s * 1e12);
     } else {
       const int decile = static_cast<int>(f * 10 + 1e-9);
       if (decile <= last_decile_) return;
       last_decile_ = decile;
-      std::fprintf(stderr, "progress %3d%%  t = %.2f ns  step %lld\n", decile * 10,
-                   p.time_s * 1e9, static_cast<long long>(p.steps));
+      std::fprintf(stderr, "progress %3d%%  t = %.2f ns  step %lld\n", decile * 10, p.time_s * 1e9,
+                   static_cast<long long>(p.steps));
     }
   }
   void done() {
@@ -135,7 +137,8 @@ int main(int argc, char** argv) {
     std::cout << softshock::summary_to_json(summary) << std::endl;
     if (!complete) {
       std::fprintf(stderr, "softshock-solve: run %s: %s (partial result kept in %s)\n",
-                   summary.status.c_str(), result.error.empty() ? "interrupted" : result.error.c_str(),
+                   summary.status.c_str(),
+                   result.error.empty() ? "interrupted" : result.error.c_str(),
                    writer.h5_path().c_str());
       return 1;
     }

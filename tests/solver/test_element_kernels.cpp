@@ -21,7 +21,8 @@ struct KernelFixture {
   KernelFixture() {
     const std::size_t ne = mesh.element_count();
     for (auto* v : {&g.node0, &g.node1, &g.node2}) v->resize(ne);
-    for (auto* v : {&g.dm_inv_xx, &g.dm_inv_xy, &g.dm_inv_yx, &g.dm_inv_yy, &g.area0}) v->resize(ne);
+    for (auto* v : {&g.dm_inv_xx, &g.dm_inv_xy, &g.dm_inv_yx, &g.dm_inv_yy, &g.area0})
+      v->resize(ne);
     for (std::size_t e = 0; e < ne; ++e) {
       const auto& t = mesh.triangles[e];
       g.node0[e] = t[0], g.node1[e] = t[1], g.node2[e] = t[2];
@@ -92,12 +93,14 @@ TEST(ElementKernel, PatchTestUniformDeformationGivesNoInteriorForceAndExactStres
   for (int k = 0; k < 4; ++k) {
     continuum::Mat2 fp = f, fm = f;
     fp[k] += 1e-6, fm[k] -= 1e-6;
-    const double dw = (stored_energy(fp, 2e9, 7.15, 3e8) - stored_energy(fm, 2e9, 7.15, 3e8)) / 2e-6;
+    const double dw =
+        (stored_energy(fp, 2e9, 7.15, 3e8) - stored_energy(fm, 2e9, 7.15, 3e8)) / 2e-6;
     EXPECT_NEAR(piola[k], dw, 1e-6 * frobenius(piola)) << k;
   }
   // Every element carries the same stress: its nodal forces equal -A0 P grad N.
   for (std::size_t e = 0; e < fx.g.size(); ++e) {
-    const double f1x = -fx.g.area0[e] * (piola[0] * fx.g.dm_inv_xx[e] + piola[1] * fx.g.dm_inv_xy[e]);
+    const double f1x =
+        -fx.g.area0[e] * (piola[0] * fx.g.dm_inv_xx[e] + piola[1] * fx.g.dm_inv_xy[e]);
     EXPECT_NEAR(fx.s.force_x[fx.g.size() + e], f1x, 1e-9 * scale);
   }
 }

@@ -85,8 +85,8 @@ TEST(RunSpec, MalformedJsonAndUnknownFieldsAreRejected) {
 }
 
 TEST(PressurePulse, ShapesDeliverTheirDocumentedImpulse) {
-  for (auto shape : {PulseShape::kSquare, PulseShape::kGaussian, PulseShape::kLinear,
-                     PulseShape::kQuadratic}) {
+  for (auto shape :
+       {PulseShape::kSquare, PulseShape::kGaussian, PulseShape::kLinear, PulseShape::kQuadratic}) {
     const PressurePulse pulse{shape, 2e9, 8e-9};
     const int n = 200000;
     const double dt = 1.1 * pulse.end_s() / n;

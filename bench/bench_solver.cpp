@@ -1,0 +1,81 @@
+// Solver grind time: nanoseconds per element per step (LS-DYNA's "time per zone cycle"), on
+// Gmsh disks of ~16.5k, ~66k and ~264k elements, with 1 and 2 element-loop threads.
+// Each iteration runs the baseline problem for `kSteps` steps and subtracts a run of
+// `kWarm` steps, so meshing and set-up are excluded; diagnostics are off (history every 1 s).
+//   build/bench/bench_solver --benchmark_repetitions=5 --benchmark_report_aggregates_only=true
+#include <benchmark/benchmark.h>
+
+#include <chrono>
+#include <map>
+
+#include "solver/gmsh_mesher.hpp"
+#include "solver/run_spec.hpp"
+#include "solver/simulation.hpp"
+
+namespace {
+
+constexpr int kWarm = 5, kSteps = 105;
+
+const softshock::Problem& disk(int elements) {
+  static std::map<int, softshock::Problem> cache;
+  auto it = cache.find(elements);
+  if (it == cache.end()) {
+    auto spec = softshock::v1::RunSpec();
+    spec.mutable_geometry()->set_target_elements(elements);
+    spec = softshock::normalize_spec(spec);
+    it = cache.emplace(elements, softshock::make_problem(spec)).first;
+  }
+  return it->second;
+}
+
+double seconds_for(const softshock::Problem& p, int steps, int threads) {
+  softshock::SolverOptions o;
+  o.end_time_s = 1e-6;
+  o.history_interval_s = 1.0;  // no samples inside the measured steps
+  o.output_interval_s = 0;
+  o.modes = 0;
+  o.threads = threads;
+  o.max_steps = steps;
+  const auto t0 = std::chrono::steady_clock::now();
+  const auto r = softshock::run_simulation(p, o);
+  benchmark::DoNotOptimize(r.steps);
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+void BM_GrindTime(benchmark::State& state) {
+  const auto& p = disk(static_cast<int>(state.range(0)));
+  const int threads = static_cast<int>(state.range(1));
+  const double element_steps = static_cast<double>(p.mesh.element_count()) * (kSteps - kWarm);
+  for (auto _ : state) {
+    const double dt = seconds_for(p, kSteps, threads) - seconds_for(p, kWarm, threads);
+    state.SetIterationTime(dt);
+  }
+  state.counters["elements"] = static_cast<double>(p.mesh.element_count());
+  state.counters["ns_per_element_step"] =
+      benchmark::Counter(element_steps * 1e-9, benchmark::Counter::kIsIterationInvariantRate |
+                                                   benchmark::Counter::kInvert);
+}
+BENCHMARK(BM_GrindTime)
+    ->ArgsProduct({{16500, 66000, 264000}, {1, 2}})
+    ->ArgNames({"target_elements", "threads"})
+    ->UseManualTime()
+    ->Unit(benchmark::kMillisecond)
+    ->Iterations(3);
+
+// Wall time of the full baseline run (800 ns, diagnostics every 1 ns, no field output).
+void BM_BaselineRun(benchmark::State& state) {
+  auto spec =
+      softshock::normalize_spec(softshock::parse_spec_json(R"({"run":{"output_interval":0}})"));
+  const auto& p = disk(16500);
+  int64_t steps = 0;
+  for (auto _ : state) {
+    const auto r = softshock::run_simulation(p, softshock::make_options(spec));
+    steps = r.steps;
+  }
+  state.counters["steps"] = static_cast<double>(steps);
+}
+BENCHMARK(BM_BaselineRun)->Unit(benchmark::kSecond)->Iterations(1);
+
+}  // namespace
+
+BENCHMARK_MAIN();

@@ -1,0 +1,627 @@
+// Result files: exact round trip through ResultWriter/ResultReader, the documented HDF5 layout
+// (docs/results-format.md), the temporary-file protocol, concurrency, and (built separately as
+// test_result_file_meshio, label integration) the XDMF companion read by meshio.
+#include <gtest/gtest.h>
+#include <hdf5.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <sstream>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "solver/io/result_file.hpp"
+
+namespace softshock {
+namespace {
+
+namespace fs = std::filesystem;
+
+// A scratch folder per test: ctest runs the discovered tests as parallel processes.
+class ScratchDir {
+ public:
+  ScratchDir() {
+    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+    path_ = fs::temp_directory_path() / ("softshock-result-" + std::to_string(::getpid()) + "-" +
+                                         info->test_suite_name() + "-" + info->name());
+    fs::remove_all(path_);
+    fs::create_directories(path_);
+  }
+  ~ScratchDir() {
+    std::error_code ignored;
+    fs::remove_all(path_, ignored);
+  }
+  const fs::path& path() const { return path_; }
+  std::string str(const std::string& sub = "") const { return (path_ / sub).string(); }
+
+ private:
+  fs::path path_;
+};
+
+// Helpers marked [[maybe_unused]] serve only the unit tests, which the integration build omits.
+
+// Two triangles on the unit square, counter-clockwise, as finalize_mesh leaves them.
+[[maybe_unused]] Mesh two_triangles() {
+  Mesh mesh;
+  mesh.x = {0.0, 1.0, 1.0, 0.0};
+  mesh.y = {0.0, 0.0, 1.0, 1.0};
+  mesh.triangles = {{0, 1, 2}, {0, 2, 3}};
+  finalize_mesh(mesh);
+  return mesh;
+}
+
+// Values that catch a lossy path (float32, text): non-terminating binary fractions, signed
+// zero, subnormal and huge magnitudes.
+double probe_value(std::size_t i, double salt) {
+  switch (i % 5) {
+    case 0:
+      return salt / 3.0 + static_cast<double>(i);
+    case 1:
+      return -0.0;
+    case 2:
+      return 4.9e-324 * static_cast<double>(i);
+    case 3:
+      return -1.0e300 / (salt + 7.0);
+    default:
+      return std::nextafter(1.0, 2.0) * salt - static_cast<double>(i) / 7.0;
+  }
+}
+
+FieldFrame make_frame(const Mesh& mesh, double time_s, double salt) {
+  FieldFrame f;
+  f.time_s = time_s;
+  const std::size_t n = mesh.node_count(), e = mesh.element_count();
+  for (std::size_t i = 0; i < 2 * n; ++i) {
+    f.displacement.push_back(probe_value(i, salt));
+    f.velocity.push_back(probe_value(i + 1, salt + 1));
+  }
+  for (std::size_t i = 0; i < e; ++i) {
+    f.J.push_back(1.0 + probe_value(i, salt) * 1e-3);
+    f.mean_stress.push_back(probe_value(i + 2, salt));
+    f.radial_stress.push_back(probe_value(i + 3, salt));
+    f.hoop_stress.push_back(probe_value(i + 4, salt));
+    f.von_mises.push_back(std::abs(probe_value(i, salt + 2)));
+  }
+  return f;
+}
+
+// Fills every series History::columns() names, so the test follows new columns by itself.
+History make_history(std::size_t samples, std::size_t modes) {
+  History h;
+  const auto columns = h.columns();
+  for (std::size_t c = 0; c < columns.size(); ++c) {
+    auto* column = const_cast<std::vector<double>*>(columns[c].second);
+    for (std::size_t k = 0; k < samples; ++k) {
+      column->push_back(columns[c].first == "time" ? 1e-6 * static_cast<double>(k) / 3.0
+                                                   : probe_value(k, static_cast<double>(c)));
+    }
+  }
+  for (std::size_t k = 0; k < samples && modes > 0; ++k) {
+    std::vector<double> row;
+    for (std::size_t m = 0; m <= modes; ++m) row.push_back(probe_value(k + m, 0.25));
+    h.modes.push_back(std::move(row));
+  }
+  return h;
+}
+
+RunSummary make_summary(const Mesh& mesh) {
+  RunSummary s;
+  s.nodes = mesh.node_count();
+  s.elements = mesh.element_count();
+  s.steps = 123456789012;
+  s.wall_time_s = 12.5;
+  s.end_time_s = 1e-3;
+  s.status = "completed";
+  s.rim_reflections_s = {1e-4, 2e-4};
+  return s;
+}
+
+const std::vector<std::string> kFieldNames = {
+    "displacement", "velocity", "J", "mean_stress", "radial_stress", "hoop_stress", "von_mises"};
+
+[[maybe_unused]] std::vector<double> field_of(const FieldFrame& f, const std::string& name) {
+  if (name == "displacement") return f.displacement;
+  if (name == "velocity") return f.velocity;
+  if (name == "J") return f.J;
+  if (name == "mean_stress") return f.mean_stress;
+  if (name == "radial_stress") return f.radial_stress;
+  if (name == "hoop_stress") return f.hoop_stress;
+  return f.von_mises;
+}
+
+// Bitwise equality (distinguishes -0.0 from 0.0, which == does not).
+[[maybe_unused]] void expect_same_bits(const std::vector<double>& got,
+                                       const std::vector<double>& want, const std::string& what) {
+  ASSERT_EQ(got.size(), want.size()) << what;
+  for (std::size_t i = 0; i < got.size(); ++i) {
+    EXPECT_EQ(std::memcmp(&got[i], &want[i], sizeof(double)), 0)
+        << what << "[" << i << "]: " << got[i] << " vs " << want[i];
+  }
+}
+
+constexpr const char* kSpec = R"({"name":"unit","mesh":{"radius_m":0.01}})";
+
+// Writes a whole result: mesh, frames at `times`, history, finish(complete, error).
+void write_result(const std::string& dir, const Mesh& mesh, const std::vector<double>& times,
+                  const History& history, bool complete = true, const std::string& error = "") {
+  ResultWriter writer(dir, mesh, kSpec, "0.1.0-test");
+  for (std::size_t k = 0; k < times.size(); ++k) {
+    writer.write_frame(make_frame(mesh, times[k], static_cast<double>(k)));
+  }
+  writer.finish(history, make_summary(mesh), complete, error);
+}
+
+#ifndef SOFTSHOCK_RESULT_FILE_INTEGRATION
+
+// ---- round trip ----------------------------------------------------------------------------
+
+TEST(ResultFile, RoundTripIsExact) {
+  ScratchDir dir;
+  const Mesh mesh = two_triangles();
+  const std::vector<double> times = {0.0, 1e-5 / 3.0, 2.5e-5};
+  const History history = make_history(7, 4);
+  write_result(dir.str(), mesh, times, history);
+
+  ResultReader reader(dir.str("result.h5"));
+  const ResultInfo& info = reader.info();
+  EXPECT_TRUE(info.complete);
+  EXPECT_EQ(info.error, "");
+  EXPECT_EQ(info.spec_json, kSpec);
+  EXPECT_EQ(info.summary_json, summary_to_json(make_summary(mesh)));
+  EXPECT_EQ(info.solver_version, "0.1.0-test");
+  expect_same_bits(info.frame_times, times, "frame_times");
+  EXPECT_EQ(info.nodes, 4u);
+  EXPECT_EQ(info.elements, 2u);
+
+  const Mesh back = reader.mesh();
+  EXPECT_EQ(back.x, mesh.x);
+  EXPECT_EQ(back.y, mesh.y);
+  EXPECT_EQ(back.triangles, mesh.triangles);
+  EXPECT_EQ(back.boundary_nodes, mesh.boundary_nodes);
+  EXPECT_EQ(back.boundary_edges.size(), mesh.boundary_edges.size());
+
+  std::vector<std::string> expected_names;
+  for (const auto& [name, column] : history.columns()) {
+    expected_names.push_back(name);
+    expect_same_bits(reader.series(name), *column, name);
+  }
+  EXPECT_EQ(reader.series_names(), expected_names);  // History::columns() order
+  expect_same_bits(reader.mode_times(), history.time, "mode_times");
+  std::size_t rows = 0, cols = 0;
+  const auto amplitudes = reader.mode_amplitudes(rows, cols);
+  EXPECT_EQ(rows, 7u);
+  EXPECT_EQ(cols, 5u);
+  std::vector<double> flat;
+  for (const auto& row : history.modes) flat.insert(flat.end(), row.begin(), row.end());
+  expect_same_bits(amplitudes, flat, "amplitudes");
+
+  for (std::size_t k = 0; k < times.size(); ++k) {
+    const FieldFrame want = make_frame(mesh, times[k], static_cast<double>(k));
+    for (const auto& name : kFieldNames) {
+      expect_same_bits(reader.field(k, name), field_of(want, name),
+                       name + " of frame " + std::to_string(k));
+    }
+  }
+  EXPECT_THROW(reader.field(3, "J"), std::out_of_range);
+  EXPECT_THROW(reader.field(0, "pressure"), std::invalid_argument);
+  EXPECT_THROW(reader.series("no_such_series"), std::runtime_error);
+  EXPECT_THROW(reader.series("../mesh/nodes"), std::invalid_argument);
+}
+
+TEST(ResultFile, IncompleteRunKeepsFlagAndError) {
+  ScratchDir dir;
+  const Mesh mesh = two_triangles();
+  const std::string message = "t = 1.2e-05 s: element 1 inverted (J = -0.03)";
+  write_result(dir.str(), mesh, {0.0}, make_history(2, 2), false, message);
+  ResultReader reader(dir.str("result.h5"));
+  EXPECT_FALSE(reader.info().complete);
+  EXPECT_EQ(reader.info().error, message);
+  EXPECT_EQ(reader.info().frame_times.size(), 1u);
+}
+
+TEST(ResultFile, RunWithoutFramesOrSamplesIsReadable) {
+  ScratchDir dir;
+  const Mesh mesh = two_triangles();
+  write_result(dir.str(), mesh, {}, History{}, false, "failed before the first step");
+  ResultReader reader(dir.str("result.h5"));
+  EXPECT_TRUE(reader.info().frame_times.empty());
+  EXPECT_TRUE(reader.series("time").empty());
+  std::size_t rows = 9, cols = 9;
+  EXPECT_TRUE(reader.mode_amplitudes(rows, cols).empty());
+  EXPECT_EQ(rows, 0u);
+  EXPECT_EQ(cols, 0u);
+  EXPECT_TRUE(fs::exists(dir.path() / "result.xdmf"));
+}
+
+TEST(ResultFile, LargeStringsRoundTrip) {
+  // Past HDF5's 64 KiB object-header limit for attributes stored inline.
+  ScratchDir dir;
+  const Mesh mesh = two_triangles();
+  std::string spec = "{\"pad\":\"";
+  spec.append(1 << 20, 'x');
+  spec += "\"}";
+  {
+    ResultWriter writer(dir.str(), mesh, spec, "v");
+    writer.finish(History{}, make_summary(mesh), true, std::string(100000, 'e'));
+  }
+  ResultReader reader(dir.str("result.h5"));
+  EXPECT_EQ(reader.info().spec_json, spec);
+  EXPECT_EQ(reader.info().error.size(), 100000u);
+}
+
+// ---- temporary file protocol --------------------------------------------------------------
+
+TEST(ResultFile, NothingUnderTheFinalNameBeforeFinish) {
+  ScratchDir dir;
+  const Mesh mesh = two_triangles();
+  const std::string out = dir.str("nested/run-1");  // created by the writer
+  ResultWriter writer(out, mesh, kSpec, "v");
+  writer.write_frame(make_frame(mesh, 0.0, 0));
+  EXPECT_EQ(writer.h5_path(), out + "/result.h5");
+  EXPECT_EQ(writer.xdmf_path(), out + "/result.xdmf");
+  EXPECT_FALSE(fs::exists(writer.h5_path()));
+  EXPECT_FALSE(fs::exists(writer.xdmf_path()));
+  EXPECT_TRUE(fs::exists(out + "/result.h5.tmp"));
+  writer.finish(make_history(3, 1), make_summary(mesh), true, "");
+  EXPECT_TRUE(fs::exists(writer.h5_path()));
+  EXPECT_TRUE(fs::exists(writer.xdmf_path()));
+  EXPECT_FALSE(fs::exists(out + "/result.h5.tmp"));
+  EXPECT_FALSE(fs::exists(out + "/result.xdmf.tmp"));
+  EXPECT_THROW(writer.write_frame(make_frame(mesh, 1.0, 1)), std::logic_error);
+  EXPECT_THROW(writer.finish(History{}, make_summary(mesh), true, ""), std::logic_error);
+}
+
+TEST(ResultFile, WriterDestroyedWithoutFinishLeavesNothing) {
+  ScratchDir dir;
+  const Mesh mesh = two_triangles();
+  {
+    ResultWriter writer(dir.str(), mesh, kSpec, "v");
+    writer.write_frame(make_frame(mesh, 0.0, 0));
+    writer.write_frame(make_frame(mesh, 1.0, 1));
+  }
+  EXPECT_TRUE(fs::is_empty(dir.path()));
+}
+
+TEST(ResultFile, RewriteReplacesEarlierResult) {
+  // A requeued job writes into the folder of its interrupted attempt.
+  ScratchDir dir;
+  const Mesh mesh = two_triangles();
+  write_result(dir.str(), mesh, {0.0}, make_history(1, 0), false, "interrupted");
+  write_result(dir.str(), mesh, {0.0, 1.0}, make_history(2, 0), true, "");
+  ResultReader reader(dir.str("result.h5"));
+  EXPECT_TRUE(reader.info().complete);
+  EXPECT_EQ(reader.info().frame_times.size(), 2u);
+}
+
+TEST(ResultFile, RejectsInconsistentInputAndStaysUsable) {
+  ScratchDir dir;
+  const Mesh mesh = two_triangles();
+  ResultWriter writer(dir.str(), mesh, kSpec, "v");
+  FieldFrame bad = make_frame(mesh, 0.0, 0);
+  bad.hoop_stress.pop_back();
+  EXPECT_THROW(writer.write_frame(bad), std::invalid_argument);
+  writer.write_frame(make_frame(mesh, 0.0, 0));  // still usable, still frame_00000
+
+  History ragged = make_history(3, 2);
+  ragged.abar.pop_back();
+  EXPECT_THROW(writer.finish(ragged, make_summary(mesh), true, ""), std::invalid_argument);
+  History bad_modes = make_history(3, 2);
+  bad_modes.modes[1].pop_back();
+  EXPECT_THROW(writer.finish(bad_modes, make_summary(mesh), true, ""), std::invalid_argument);
+  EXPECT_FALSE(fs::exists(writer.h5_path()));
+
+  writer.finish(make_history(3, 2), make_summary(mesh), true, "");
+  ResultReader reader(writer.h5_path());
+  EXPECT_EQ(reader.info().frame_times, std::vector<double>{0.0});
+}
+
+TEST(ResultFile, MissingOrForeignFileThrowsWithPath) {
+  ScratchDir dir;
+  const std::string missing = dir.str("no-such-run/result.h5");
+  try {
+    ResultReader reader(missing);
+    FAIL() << "no exception";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find(missing), std::string::npos) << e.what();
+  }
+  const std::string garbage = dir.str("result.h5");
+  std::ofstream(garbage) << "not an HDF5 file\n";
+  try {
+    ResultReader reader(garbage);
+    FAIL() << "no exception";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find(garbage), std::string::npos) << e.what();
+  }
+}
+
+TEST(ResultFile, UnwritableDirectoryThrowsWithPath) {
+  ScratchDir dir;
+  std::ofstream(dir.str("plain-file")) << "x";
+  const std::string out = dir.str("plain-file/run");  // a file where a folder should be
+  try {
+    ResultWriter writer(out, two_triangles(), kSpec, "v");
+    FAIL() << "no exception";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find(out), std::string::npos) << e.what();
+  }
+}
+
+// ---- concurrency ---------------------------------------------------------------------------
+
+TEST(ResultFile, TwoWritersAndAReaderInParallel) {
+  ScratchDir dir;
+  const Mesh mesh = make_rectangle_mesh(1.0, 0.5, 24, 12);
+  const History history = make_history(500, 8);
+  std::vector<double> times;
+  for (int k = 0; k < 12; ++k) times.push_back(1e-6 * k);
+  write_result(dir.str("reference"), mesh, times, history);
+
+  std::atomic<bool> writers_done{false};
+  std::atomic<int> reads{0};
+  std::vector<std::string> errors(3);
+  auto writer_task = [&](int w) {
+    try {
+      write_result(dir.str("run-" + std::to_string(w)), mesh, times, history);
+    } catch (const std::exception& e) {
+      errors[w] = e.what();
+    }
+  };
+  std::thread reader_thread([&] {
+    try {
+      const FieldFrame want = make_frame(mesh, times[5], 5.0);
+      do {
+        ResultReader reader(dir.str("reference/result.h5"));
+        if (reader.field(5, "velocity") != want.velocity) throw std::runtime_error("mismatch");
+        if (reader.series("abar").size() != 500) throw std::runtime_error("short series");
+        ++reads;
+      } while (!writers_done);
+    } catch (const std::exception& e) {
+      errors[2] = e.what();
+    }
+  });
+  std::thread w0(writer_task, 0), w1(writer_task, 1);
+  w0.join();
+  w1.join();
+  writers_done = true;
+  reader_thread.join();
+  for (const auto& e : errors) EXPECT_EQ(e, "");
+  EXPECT_GT(reads.load(), 0);
+  for (int w = 0; w < 2; ++w) {
+    ResultReader reader(dir.str("run-" + std::to_string(w) + "/result.h5"));
+    ASSERT_EQ(reader.info().frame_times, times);
+    for (std::size_t k = 0; k < times.size(); ++k) {
+      const FieldFrame want = make_frame(mesh, times[k], static_cast<double>(k));
+      for (const auto& name : kFieldNames) {
+        expect_same_bits(reader.field(k, name), field_of(want, name), name);
+      }
+    }
+  }
+}
+
+// ---- the documented layout, read with the plain HDF5 API ------------------------------------
+
+// Test-side access to the file as a user's tool sees it. Single-threaded, so no lock needed.
+struct H5File {
+  explicit H5File(const std::string& path) {
+    H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
+    id = H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+  }
+  ~H5File() {
+    if (id >= 0) H5Fclose(id);
+  }
+  hid_t id = -1;
+};
+
+struct DatasetShape {
+  H5T_class_t type_class = H5T_NO_CLASS;
+  std::size_t type_size = 0;
+  std::vector<hsize_t> dims;
+  H5D_layout_t layout = H5D_LAYOUT_ERROR;
+  std::vector<hsize_t> chunk;
+  bool deflate = false, shuffle = false;
+  std::string units;
+  bool has_units = false;
+};
+
+std::string string_attr(hid_t obj, const char* name) {
+  const hid_t a = H5Aopen(obj, name, H5P_DEFAULT);
+  if (a < 0) return "<missing>";
+  const hid_t t = H5Aget_type(a);
+  std::string out = "<not a variable-length string>";
+  if (H5Tget_class(t) == H5T_STRING && H5Tis_variable_str(t) > 0) {
+    char* p = nullptr;
+    const hid_t mt = H5Tcopy(H5T_C_S1);
+    H5Tset_size(mt, H5T_VARIABLE);
+    H5Tset_cset(mt, H5Tget_cset(t));
+    if (H5Aread(a, mt, &p) >= 0 && p) out = p;
+    H5free_memory(p);
+    H5Tclose(mt);
+  }
+  H5Tclose(t);
+  H5Aclose(a);
+  return out;
+}
+
+// (class, size in bytes) of an attribute's stored type, e.g. (H5T_INTEGER, 4).
+std::pair<H5T_class_t, std::size_t> attr_type(hid_t obj, const char* name) {
+  const hid_t a = H5Aopen(obj, name, H5P_DEFAULT);
+  if (a < 0) return {H5T_NO_CLASS, 0};
+  const hid_t t = H5Aget_type(a);
+  std::pair<H5T_class_t, std::size_t> out{H5Tget_class(t), H5Tget_size(t)};
+  H5Tclose(t);
+  H5Aclose(a);
+  return out;
+}
+
+DatasetShape shape_of(hid_t file, const std::string& name) {
+  DatasetShape s;
+  const hid_t ds = H5Dopen2(file, name.c_str(), H5P_DEFAULT);
+  if (ds < 0) return s;
+  const hid_t t = H5Dget_type(ds);
+  s.type_class = H5Tget_class(t);
+  s.type_size = H5Tget_size(t);
+  H5Tclose(t);
+  const hid_t space = H5Dget_space(ds);
+  s.dims.resize(static_cast<std::size_t>(H5Sget_simple_extent_ndims(space)));
+  H5Sget_simple_extent_dims(space, s.dims.data(), nullptr);
+  H5Sclose(space);
+  const hid_t dcpl = H5Dget_create_plist(ds);
+  s.layout = H5Pget_layout(dcpl);
+  if (s.layout == H5D_CHUNKED) {
+    s.chunk.resize(s.dims.size());
+    H5Pget_chunk(dcpl, static_cast<int>(s.chunk.size()), s.chunk.data());
+    for (int i = 0; i < H5Pget_nfilters(dcpl); ++i) {
+      unsigned flags = 0;
+      std::size_t n = 0;
+      const H5Z_filter_t f =
+          H5Pget_filter2(dcpl, static_cast<unsigned>(i), &flags, &n, nullptr, 0, nullptr, nullptr);
+      s.deflate |= f == H5Z_FILTER_DEFLATE;
+      s.shuffle |= f == H5Z_FILTER_SHUFFLE;
+    }
+  }
+  H5Pclose(dcpl);
+  s.has_units = H5Aexists(ds, "units") > 0;
+  if (s.has_units) s.units = string_attr(ds, "units");
+  H5Dclose(ds);
+  return s;
+}
+
+TEST(ResultFile, LayoutMatchesTheDocumentedContract) {
+  ScratchDir dir;
+  // 48 x 24 cells: 1225 nodes (N x 2 doubles = 19.6 KB, chunked), 2304 elements (18.4 KB,
+  // chunked), a 144-node boundary loop (contiguous).
+  const Mesh mesh = make_rectangle_mesh(2.0, 1.0, 48, 24);
+  write_result(dir.str(), mesh, {0.0, 1e-6, 2e-6}, make_history(4000, 6));
+  H5File f(dir.str("result.h5"));
+  ASSERT_GE(f.id, 0);
+
+  EXPECT_EQ(attr_type(f.id, "format_version"), std::make_pair(H5T_INTEGER, std::size_t{4}));
+  EXPECT_EQ(attr_type(f.id, "complete"), std::make_pair(H5T_INTEGER, std::size_t{4}));
+  EXPECT_EQ(attr_type(f.id, "steps"), std::make_pair(H5T_INTEGER, std::size_t{8}));
+  EXPECT_EQ(attr_type(f.id, "frame_count"), std::make_pair(H5T_INTEGER, std::size_t{8}));
+  EXPECT_EQ(attr_type(f.id, "wall_time_s"), std::make_pair(H5T_FLOAT, std::size_t{8}));
+  for (const char* s : {"spec", "solver_version", "error", "summary"}) {
+    EXPECT_EQ(attr_type(f.id, s).first, H5T_STRING) << s;
+  }
+  EXPECT_EQ(string_attr(f.id, "spec"), kSpec);
+  {
+    int64_t steps = 0, frames = 0;
+    int32_t version = 0;
+    const hid_t a = H5Aopen(f.id, "steps", H5P_DEFAULT);
+    H5Aread(a, H5T_NATIVE_INT64, &steps);
+    H5Aclose(a);
+    const hid_t b = H5Aopen(f.id, "frame_count", H5P_DEFAULT);
+    H5Aread(b, H5T_NATIVE_INT64, &frames);
+    H5Aclose(b);
+    const hid_t c = H5Aopen(f.id, "format_version", H5P_DEFAULT);
+    H5Aread(c, H5T_NATIVE_INT32, &version);
+    H5Aclose(c);
+    EXPECT_EQ(steps, 123456789012);
+    EXPECT_EQ(frames, 3);
+    EXPECT_EQ(version, 1);
+  }
+
+  const hsize_t n = mesh.node_count(), e = mesh.element_count();
+  const auto nodes = shape_of(f.id, "/mesh/nodes");
+  EXPECT_EQ(nodes.type_class, H5T_FLOAT);
+  EXPECT_EQ(nodes.type_size, 8u);
+  EXPECT_EQ(nodes.dims, (std::vector<hsize_t>{n, 2}));
+  EXPECT_EQ(nodes.units, "m");
+  const auto tris = shape_of(f.id, "/mesh/triangles");
+  EXPECT_EQ(tris.type_class, H5T_INTEGER);
+  EXPECT_EQ(tris.type_size, 4u);
+  EXPECT_EQ(tris.dims, (std::vector<hsize_t>{e, 3}));
+  const auto loop = shape_of(f.id, "/mesh/boundary_nodes");
+  EXPECT_EQ(loop.type_class, H5T_INTEGER);
+  EXPECT_EQ(loop.type_size, 4u);
+  EXPECT_EQ(loop.dims, (std::vector<hsize_t>{mesh.boundary_nodes.size()}));
+  EXPECT_EQ(loop.layout, H5D_CONTIGUOUS);  // small: not worth a chunk index
+
+  // Every series: float64, T samples, a known unit. A new History column needs its unit in
+  // series_units() (solver/io/result_file.cpp) and a line in docs/results-format.md.
+  for (const auto& [name, column] : History{}.columns()) {
+    const auto s = shape_of(f.id, "/timeseries/" + name);
+    EXPECT_EQ(s.type_class, H5T_FLOAT) << name;
+    EXPECT_EQ(s.type_size, 8u) << name;
+    EXPECT_EQ(s.dims, std::vector<hsize_t>{4000}) << name;
+    EXPECT_FALSE(s.units.empty()) << name << " has no units";
+    EXPECT_EQ(s.layout, H5D_CHUNKED) << name;  // 32 KB: long enough to compress
+  }
+  EXPECT_EQ(shape_of(f.id, "/modes/time").dims, std::vector<hsize_t>{4000});
+  EXPECT_EQ(shape_of(f.id, "/modes/amplitude").dims, (std::vector<hsize_t>{4000, 7}));
+
+  for (int k = 0; k < 3; ++k) {
+    char group[64];
+    std::snprintf(group, sizeof group, "/fields/frame_%05d", k);
+    const hid_t g = H5Gopen2(f.id, group, H5P_DEFAULT);
+    ASSERT_GE(g, 0) << group;
+    EXPECT_EQ(attr_type(g, "time"), std::make_pair(H5T_FLOAT, std::size_t{8}));
+    H5Gclose(g);
+    for (const auto& name : kFieldNames) {
+      const auto s = shape_of(f.id, std::string(group) + "/" + name);
+      const bool nodal = name == "displacement" || name == "velocity";
+      EXPECT_EQ(s.type_class, H5T_FLOAT) << name;
+      EXPECT_EQ(s.type_size, 8u) << name;
+      const std::vector<hsize_t> dims =
+          nodal ? std::vector<hsize_t>{n, 2} : std::vector<hsize_t>{e};
+      EXPECT_EQ(s.dims, dims) << name;
+      EXPECT_TRUE(s.has_units) << name;
+      ASSERT_EQ(s.layout, H5D_CHUNKED) << name;
+      EXPECT_TRUE(s.deflate && s.shuffle) << name;
+      hsize_t chunk_bytes = 8;
+      for (hsize_t c : s.chunk) chunk_bytes *= c;
+      EXPECT_GE(chunk_bytes, 10u * 1024) << name;
+      EXPECT_LE(chunk_bytes, 1024u * 1024) << name;
+    }
+  }
+}
+
+TEST(ResultFile, XdmfPointsAtTheFramesOfTheHdf5File) {
+  ScratchDir dir;
+  const Mesh mesh = two_triangles();
+  write_result(dir.str(), mesh, {0.0, 0.1, 0.25}, make_history(3, 1));
+  std::ifstream in(dir.str("result.xdmf"));
+  std::stringstream text;
+  text << in.rdbuf();
+  const std::string x = text.str();
+  EXPECT_NE(x.find("<Xdmf Version=\"3.0\">"), std::string::npos);
+  EXPECT_NE(x.find("CollectionType=\"Temporal\""), std::string::npos);
+  EXPECT_NE(x.find("<Time Value=\"0.25\"/>"), std::string::npos);
+  EXPECT_NE(x.find("result.h5:/mesh/nodes"), std::string::npos);
+  EXPECT_NE(x.find("result.h5:/fields/frame_00002/von_mises"), std::string::npos);
+  EXPECT_EQ(x.find("frame_00003"), std::string::npos);
+}
+
+#else  // SOFTSHOCK_RESULT_FILE_INTEGRATION
+
+// ---- XDMF read by meshio (Debian's python3-meshio), as users and post-processing do ---------
+
+TEST(ResultFileXdmf, MeshioReadsMeshAndFrames) {
+  ScratchDir dir;
+  const Mesh mesh = make_rectangle_mesh(1.0, 0.5, 8, 4);
+  const std::vector<double> times = {0.0, 1e-5 / 3.0, 2.0e-5};
+  write_result(dir.str(), mesh, times, make_history(5, 3));
+
+  std::ostringstream cmd;
+  cmd.precision(17);
+  cmd << "/usr/bin/python3 " << SOFTSHOCK_SOURCE_DIR << "/tests/integration/check_xdmf_meshio.py "
+      << dir.str("result.xdmf") << " " << mesh.node_count() << " " << mesh.element_count();
+  for (double t : times) cmd << " " << t;
+  const int rc = std::system(cmd.str().c_str());
+  ASSERT_NE(rc, -1);
+  EXPECT_TRUE(WIFEXITED(rc) && WEXITSTATUS(rc) == 0) << cmd.str() << " -> " << rc;
+}
+
+#endif  // SOFTSHOCK_RESULT_FILE_INTEGRATION
+
+}  // namespace
+}  // namespace softshock
