@@ -19,7 +19,6 @@ void ElementState::resize(std::size_t elements) {
   for (auto* v : {&f_xx, &f_xy, &f_yx, &f_yy, &log_j, &pv_xx, &pv_xy, &pv_yx, &pv_yy}) {
     v->assign(elements, 0.0);
   }
-  for (auto* v : {&step_sq, &dissipation, &j}) v->assign(elements, 0.0);
   force_x.assign(3 * elements, 0.0);
   force_y.assign(3 * elements, 0.0);
   reset_to_reference();
@@ -54,8 +53,6 @@ __attribute__((target_clones("avx2", "default"))) void compute_element_forces(
   double* log_j_prev = s.log_j.data();
   double *pxx = s.pv_xx.data(), *pxy = s.pv_xy.data(), *pyx = s.pv_yx.data(), *pyy = s.pv_yy.data();
   double *force_x = s.force_x.data(), *force_y = s.force_y.data();
-  double *step_sq_out = s.step_sq.data(), *dissipation_out = s.dissipation.data(),
-         *j_out = s.j.data();
 
   // Edge vectors are gathered per block into small contiguous buffers (indexed loads do not
   // vectorise well); the element loop then streams plain arrays. The loop body is branch-free
@@ -63,6 +60,10 @@ __attribute__((target_clones("avx2", "default"))) void compute_element_forces(
   // it vectorises, exp and log included.
   constexpr std::size_t kBlock = 256;
   alignas(64) double edge1x[kBlock], edge1y[kBlock], edge2x[kBlock], edge2y[kBlock];
+  // Per-element results reduced after the (reduction-free, hence vectorisable) loop.
+  alignas(64) double step_sq_out[kBlock], dissipation_out[kBlock], j_out[kBlock];
+  double min_step_sq = totals.min_step_sq, dissipation = 0.0;
+  bool all_valid = true;
   for (std::size_t block = begin; block < end; block += kBlock) {
     const std::size_t count = std::min(kBlock, end - block);
     for (std::size_t k = 0; k < count; ++k) {
@@ -78,7 +79,7 @@ __attribute__((target_clones("avx2", "default"))) void compute_element_forces(
       const cm::Mat2 dm_inv{dxx[e], dxy[e], dyx[e], dyy[e]};
       const cm::Mat2 f = cm::deformation_gradient(e1x, e1y, e2x, e2y, dm_inv);
       const double j = cm::det(f);
-      j_out[e] = j;
+      j_out[k] = j;
       // One logarithm feeds J^-n, J^-2/3 and the viscosity's ln(J / J_prev).
       const double log_j = ::log(j);
       const double j_minus_n = ::exp(-n * log_j);
@@ -90,7 +91,7 @@ __attribute__((target_clones("avx2", "default"))) void compute_element_forces(
       const double c_sq =
           cm::longitudinal_speed_sq(cm::tait_bulk_modulus(kappa, j_minus_n), mu, rho0, j);
       const double h_sq = cm::smallest_altitude_sq(e1x, e1y, e2x, e2y);
-      step_sq_out[e] = h_sq / c_sq;
+      step_sq_out[k] = h_sq / c_sq;
 
       // Viscosity only while the element is compressed (J < J_prev) and a step was taken.
       const cm::Mat2 f_prev{fxx[e], fxy[e], fyx[e], fyy[e]};
@@ -101,7 +102,7 @@ __attribute__((target_clones("avx2", "default"))) void compute_element_forces(
       const cm::Mat2 pv = cm::viscous_piola(f, f_prev, cof, nu, dt);
       // Work of the viscous stress over the step, trapezoidal in time: what the integrator sees
       // as nodal viscous forces times the nodal displacement increments.
-      dissipation_out[e] =
+      dissipation_out[k] =
           viscosity_on * 0.5 * area0[e] *
           ((pv[0] + pxx[e]) * (f[0] - f_prev[0]) + (pv[1] + pxy[e]) * (f[1] - f_prev[1]) +
            (pv[2] + pyx[e]) * (f[2] - f_prev[2]) + (pv[3] + pyy[e]) * (f[3] - f_prev[3]));
@@ -110,7 +111,7 @@ __attribute__((target_clones("avx2", "default"))) void compute_element_forces(
       log_j_prev[e] = log_j;
       pxx[e] = pv[0], pxy[e] = pv[1], pyx[e] = pv[2], pyy[e] = pv[3];
 
-      // Force on node k: -A0 P grad N_k; grad N1, grad N2 are the rows of Dm^-1.
+      // Force on node a: -A0 P grad N_a; grad N1, grad N2 are the rows of Dm^-1.
       const double p00 = elastic[0] + pv[0], p01 = elastic[1] + pv[1];
       const double p10 = elastic[2] + pv[2], p11 = elastic[3] + pv[3];
       const double a0 = area0[e];
@@ -122,21 +123,22 @@ __attribute__((target_clones("avx2", "default"))) void compute_element_forces(
       force_x[ne + e] = f1x, force_y[ne + e] = f1y;
       force_x[2 * ne + e] = f2x, force_y[2 * ne + e] = f2y;
     }
+    for (std::size_t k = 0; k < count; ++k) {
+      min_step_sq = step_sq_out[k] < min_step_sq ? step_sq_out[k] : min_step_sq;
+      dissipation += dissipation_out[k];
+      all_valid &= j_out[k] > 0.0;  // false for J <= 0 and for NaN
+    }
   }
 
-  double min_step_sq = totals.min_step_sq, dissipation = 0.0;
-  bool all_valid = true;
-  for (std::size_t e = begin; e < end; ++e) {
-    min_step_sq = step_sq_out[e] < min_step_sq ? step_sq_out[e] : min_step_sq;
-    dissipation += dissipation_out[e];
-    all_valid &= j_out[e] > 0.0;  // false for J <= 0 and for NaN
-  }
   totals.min_step_sq = min_step_sq;
   totals.dissipation += dissipation;
-  if (!all_valid && totals.bad_element < 0) {  // rare: name the first offender
+  if (!all_valid && totals.bad_element < 0) {  // rare: recompute J to name the first offender
     for (std::size_t e = begin; e < end; ++e) {
-      if (!(j_out[e] > 0.0)) {
-        totals.bad_element = static_cast<int64_t>(e), totals.bad_j = j_out[e];
+      const double j = cm::det(cm::deformation_gradient(
+          x[node1[e]] - x[node0[e]], y[node1[e]] - y[node0[e]], x[node2[e]] - x[node0[e]],
+          y[node2[e]] - y[node0[e]], {dxx[e], dxy[e], dyx[e], dyy[e]}));
+      if (!(j > 0.0)) {
+        totals.bad_element = static_cast<int64_t>(e), totals.bad_j = j;
         break;
       }
     }
@@ -155,7 +157,7 @@ NodeCorners build_node_corners(const ElementGeometry& g, std::size_t nodes) {
   std::vector<int64_t> fill(adj.offset.begin(), adj.offset.end() - 1);
   for (int k = 0; k < 3; ++k)
     for (std::size_t e = 0; e < ne; ++e)
-      adj.corner[fill[(*corners[k])[e]]++] = static_cast<int64_t>(k * ne + e);
+      adj.corner[fill[(*corners[k])[e]]++] = static_cast<int32_t>(k * ne + e);
   return adj;
 }
 

@@ -24,9 +24,6 @@ struct ElementState {
   std::vector<double> pv_xx, pv_xy, pv_yx, pv_yy;  // viscous P at the last evaluation
   // Nodal forces (acting on the nodes, = -f_int) of corners 0, 1, 2: corner-major, size 3E.
   std::vector<double> force_x, force_y;
-  // Per-element scratch of the last evaluation, reduced after the (reduction-free, hence
-  // vectorisable) element loop: h^2/c^2, dissipation increment, J.
-  std::vector<double> step_sq, dissipation, j;
   void resize(std::size_t elements);
   void reset_to_reference();  // F = I, ln J = 0, P_v = 0
 };
@@ -53,7 +50,7 @@ void compute_element_forces(const ElementGeometry& geometry, const double* x, co
 // Node -> (element corner) adjacency for the deterministic gather of nodal forces.
 struct NodeCorners {
   std::vector<int64_t> offset;  // size N + 1
-  std::vector<int64_t> corner;  // index into ElementState::force_x/force_y (corner * E + e)
+  std::vector<int32_t> corner;  // index into ElementState::force_x/force_y (corner * E + e)
 };
 NodeCorners build_node_corners(const ElementGeometry& geometry, std::size_t nodes);
 

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <limits>
 #include <numbers>
+#include <numeric>
 #include <sstream>
 #include <stdexcept>
 #include <utility>
@@ -279,6 +280,67 @@ void finalize_mesh(Mesh& mesh) {
     if (l != outer) append_loop(loops[l]);
   }
   mesh.boundary_nodes = std::move(loops[outer]);
+}
+
+namespace {
+
+// Interleaves the low 16 bits of i and j (Morton code).
+uint32_t interleave(uint32_t i, uint32_t j) {
+  auto spread = [](uint32_t v) {
+    v &= 0xFFFF;
+    v = (v | (v << 8)) & 0x00FF00FF;
+    v = (v | (v << 4)) & 0x0F0F0F0F;
+    v = (v | (v << 2)) & 0x33333333;
+    v = (v | (v << 1)) & 0x55555555;
+    return v;
+  };
+  return spread(i) | (spread(j) << 1);
+}
+
+}  // namespace
+
+void sort_for_locality(Mesh& mesh) {
+  const std::size_t nn = mesh.node_count(), ne = mesh.element_count();
+  if (nn == 0) return;
+  const auto [xmin, xmax] = std::minmax_element(mesh.x.begin(), mesh.x.end());
+  const auto [ymin, ymax] = std::minmax_element(mesh.y.begin(), mesh.y.end());
+  const double x0 = *xmin, y0 = *ymin;
+  const double span = std::max(*xmax - x0, *ymax - y0);
+  const double scale = span > 0 ? 65535.0 / span : 0.0;
+  auto key = [&](double x, double y) {
+    return interleave(static_cast<uint32_t>((x - x0) * scale),
+                      static_cast<uint32_t>((y - y0) * scale));
+  };
+  std::vector<int32_t> order(nn);
+  std::iota(order.begin(), order.end(), 0);
+  std::vector<uint32_t> node_key(nn);
+  for (std::size_t i = 0; i < nn; ++i) node_key[i] = key(mesh.x[i], mesh.y[i]);
+  std::stable_sort(order.begin(), order.end(),
+                   [&](int32_t a, int32_t b) { return node_key[a] < node_key[b]; });
+  std::vector<int32_t> new_index(nn);
+  Mesh sorted;
+  sorted.x.resize(nn), sorted.y.resize(nn);
+  for (std::size_t k = 0; k < nn; ++k) {
+    new_index[order[k]] = static_cast<int32_t>(k);
+    sorted.x[k] = mesh.x[order[k]], sorted.y[k] = mesh.y[order[k]];
+  }
+  std::vector<int32_t> element_order(ne);
+  std::iota(element_order.begin(), element_order.end(), 0);
+  std::vector<uint32_t> element_key(ne);
+  for (std::size_t e = 0; e < ne; ++e) {
+    const auto& t = mesh.triangles[e];
+    element_key[e] = key((mesh.x[t[0]] + mesh.x[t[1]] + mesh.x[t[2]]) / 3.0,
+                         (mesh.y[t[0]] + mesh.y[t[1]] + mesh.y[t[2]]) / 3.0);
+  }
+  std::stable_sort(element_order.begin(), element_order.end(),
+                   [&](int32_t a, int32_t b) { return element_key[a] < element_key[b]; });
+  sorted.triangles.resize(ne);
+  for (std::size_t k = 0; k < ne; ++k) {
+    const auto& t = mesh.triangles[element_order[k]];
+    sorted.triangles[k] = {new_index[t[0]], new_index[t[1]], new_index[t[2]]};
+  }
+  finalize_mesh(sorted);
+  mesh = std::move(sorted);
 }
 
 Mesh make_rectangle_mesh(double lx, double ly, int nx, int ny) {
