@@ -1,0 +1,72 @@
+// HDF5 result files (layout: docs/results-format.md) and their XDMF companion.
+// libhdf5 is not thread-safe: every HDF5 call in this module holds one process-wide mutex, so
+// several runs (daemon workers) may write and read result files concurrently.
+#pragma once
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "solver/mesh.hpp"
+#include "solver/run_summary.hpp"
+#include "solver/simulation.hpp"
+
+namespace softshock {
+
+// Writes DIR/result.h5 (+ DIR/result.xdmf). Data goes to DIR/result.h5.tmp; finish() flushes,
+// fsyncs and renames, so a reader never sees a half-written result.h5.
+class ResultWriter {
+ public:
+  ResultWriter(const std::string& out_dir, const Mesh& mesh, const std::string& spec_json,
+               const std::string& solver_version);
+  ~ResultWriter();  // without finish(): closes and removes the temporary file
+  ResultWriter(const ResultWriter&) = delete;
+  ResultWriter& operator=(const ResultWriter&) = delete;
+
+  void write_frame(const FieldFrame& frame);  // /fields/frame_00000, _00001, ...
+  // Writes /timeseries, /modes, root attributes (run statistics, summary JSON, `complete`,
+  // `error`), then makes the files durable under their final names.
+  void finish(const History& history, const RunSummary& summary, bool complete,
+              const std::string& error);
+
+  std::string h5_path() const;    // final path DIR/result.h5
+  std::string xdmf_path() const;  // DIR/result.xdmf
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+// Read side, for the daemon's queries and for tests.
+struct ResultInfo {
+  bool complete = false;
+  std::string error, spec_json, summary_json, solver_version;
+  std::vector<double> frame_times;  // s, one per /fields/frame_K
+  std::size_t nodes = 0, elements = 0;
+};
+
+class ResultReader {
+ public:
+  explicit ResultReader(const std::string& h5_path);  // throws std::runtime_error
+  ~ResultReader();
+  ResultReader(const ResultReader&) = delete;
+  ResultReader& operator=(const ResultReader&) = delete;
+
+  const ResultInfo& info() const;
+  Mesh mesh() const;  // nodes, triangles, boundary_nodes (boundary_edges rebuilt)
+  // Scalar series by name (e.g. "abar"); "time" is the shared time axis.
+  std::vector<double> series(const std::string& name) const;
+  std::vector<std::string> series_names() const;
+  std::vector<double> mode_times() const;
+  // Row-major T x (M+1) amplitudes.
+  std::vector<double> mode_amplitudes(std::size_t& rows, std::size_t& cols) const;
+  // A field of frame k: "displacement" and "velocity" are N x 2 interleaved; "J",
+  // "mean_stress", "radial_stress", "hoop_stress", "von_mises" are per element.
+  std::vector<double> field(std::size_t frame, const std::string& name) const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace softshock

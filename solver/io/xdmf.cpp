@@ -1,0 +1,96 @@
+// The XDMF 3 companion of result.h5: light XML that points into the HDF5 file, so ParaView
+// (and meshio) read the fields without a converter. The document is built as a string here;
+// result_file.cpp writes it durably next to result.h5.
+#include <array>
+#include <charconv>
+#include <cstddef>
+#include <stdexcept>
+#include <string>
+#include <system_error>
+#include <utility>
+#include <vector>
+
+namespace softshock::detail {
+
+namespace {
+
+// Shortest text that reads back as the same double: frame times in the XML must match the
+// `time` attributes in the HDF5 file exactly, whatever the reader.
+std::string exact_double(double v) {
+  std::array<char, 32> buf{};
+  const auto [end, ec] = std::to_chars(buf.data(), buf.data() + buf.size(), v);
+  if (ec != std::errc{}) throw std::runtime_error("XDMF: cannot format a frame time");
+  return std::string(buf.data(), end);
+}
+
+// One HDF5-backed DataItem. Dimensions are written row-major (slowest first), as XDMF and
+// HDF5 both expect; DataType/Precision describe the stored type so no reader converts.
+std::string data_item(const std::string& h5_file, const std::string& dataset,
+                      const std::string& dims, bool is_int, const std::string& indent) {
+  return indent + "<DataItem Dimensions=\"" + dims + "\" DataType=\"" +
+         (is_int ? "Int\" Precision=\"4\"" : "Float\" Precision=\"8\"") + " Format=\"HDF\">" +
+         h5_file + ":" + dataset + "</DataItem>\n";
+}
+
+// Topology and geometry of one grid. Every grid references the same two datasets of /mesh:
+// the data are stored once, and the mesh is the reference configuration (displacement gives
+// the motion).
+std::string mesh_elements(const std::string& h5_file, std::size_t nodes, std::size_t elements,
+                          const std::string& indent) {
+  const std::string e = std::to_string(elements), n = std::to_string(nodes);
+  return indent + "<Topology TopologyType=\"Triangle\" NumberOfElements=\"" + e + "\">\n" +
+         data_item(h5_file, "/mesh/triangles", e + " 3", true, indent + "  ") + indent +
+         "</Topology>\n" + indent + "<Geometry GeometryType=\"XY\">\n" +
+         data_item(h5_file, "/mesh/nodes", n + " 2", false, indent + "  ") + indent +
+         "</Geometry>\n";
+}
+
+}  // namespace
+
+// h5_file: the HDF5 file name relative to the XDMF file (readers resolve it against the XDMF
+// file's folder, so the pair can be moved together). frame_groups[k] is the group path of frame
+// k (e.g. "/fields/frame_00000") and frame_times[k] its time. attributes: (dataset name,
+// node-centred); node-centred fields are N x 2 vectors, the others per-element scalars.
+std::string xdmf_document(const std::string& h5_file, std::size_t nodes, std::size_t elements,
+                          const std::vector<std::string>& frame_groups,
+                          const std::vector<double>& frame_times,
+                          const std::vector<std::pair<std::string, bool>>& attributes) {
+  if (frame_groups.size() != frame_times.size()) {
+    throw std::invalid_argument("XDMF: frame groups and frame times differ in number");
+  }
+  std::string x;
+  x.reserve(512 + frame_groups.size() * (600 + 200 * attributes.size()));
+  x += "<?xml version=\"1.0\" encoding=\"utf-8\"?>\n";
+  x += "<Xdmf Version=\"3.0\">\n  <Domain>\n";
+  if (frame_groups.empty()) {
+    // No frame was written (e.g. a run that failed before t = 0 was output): still describe the
+    // reference mesh so the file opens.
+    x += "    <Grid Name=\"mesh\" GridType=\"Uniform\">\n";
+    x += mesh_elements(h5_file, nodes, elements, "      ");
+    x += "    </Grid>\n";
+  } else {
+    // One Uniform grid per frame inside one Temporal collection: ParaView animates over the
+    // <Time> values, meshio's TimeSeriesReader takes the mesh from the first grid.
+    x += "    <Grid Name=\"fields\" GridType=\"Collection\" CollectionType=\"Temporal\">\n";
+    const std::string n = std::to_string(nodes), e = std::to_string(elements);
+    for (std::size_t k = 0; k < frame_groups.size(); ++k) {
+      const std::string& group = frame_groups[k];
+      const std::string name = group.substr(group.find_last_of('/') + 1);
+      x += "      <Grid Name=\"" + name + "\" GridType=\"Uniform\">\n";
+      x += "        <Time Value=\"" + exact_double(frame_times[k]) + "\"/>\n";
+      x += mesh_elements(h5_file, nodes, elements, "        ");
+      for (const auto& [field, nodal] : attributes) {
+        x += "        <Attribute Name=\"" + field + "\" AttributeType=\"" +
+             (nodal ? "Vector\" Center=\"Node\">\n" : "Scalar\" Center=\"Cell\">\n");
+        x += data_item(h5_file, group + "/" + field, nodal ? n + " 2" : e, false, "          ");
+        x += "        </Attribute>\n";
+      }
+      x += "      </Grid>\n";
+    }
+    x += "    </Grid>\n";
+  }
+  x += "  </Domain>\n</Xdmf>\n";
+  return x;
+}
+
+}  // namespace softshock::detail
