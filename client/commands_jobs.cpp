@@ -1,0 +1,367 @@
+// submit, status, watch, list, cancel, delete, summary, health.
+#include <google/protobuf/util/json_util.h>
+
+#include <algorithm>
+#include <cctype>
+#include <chrono>
+#include <cstdio>
+#include <thread>
+
+#include "client/commands.hpp"
+#include "client/format.hpp"
+
+namespace softshock::cli {
+
+namespace {
+
+int32_t parse_int32(const std::string& option, const std::string& text, int32_t min_value) {
+  int64_t v = parse_int(option, text);
+  if (v < min_value || v > INT32_MAX) {
+    usage_error("--" + option + ": must be between " + std::to_string(min_value) + " and " +
+                std::to_string(INT32_MAX));
+  }
+  return static_cast<int32_t>(v);
+}
+
+std::string join_labels(const google::protobuf::Map<std::string, std::string>& labels) {
+  // Sorted, so the output is stable (protobuf maps have no order).
+  std::vector<std::string> items;
+  for (const auto& [k, v] : labels) items.push_back(k + "=" + v);
+  std::sort(items.begin(), items.end());
+  std::string out;
+  for (const auto& s : items) out += (out.empty() ? "" : ",") + s;
+  return out;
+}
+
+std::string describe_geometry(const v1::RunSpec& spec) {
+  const auto& g = spec.geometry();
+  std::string shape;
+  switch (g.shape_case()) {
+    case v1::Geometry::kDisk:
+      shape = "disk R = " + fmt_num(g.disk().radius() * 1e6) + " µm";
+      break;
+    case v1::Geometry::kRoundedSquare:
+      shape = "rounded square " + fmt_num(g.rounded_square().side() * 1e6) + " µm, corner " +
+              fmt_num(g.rounded_square().corner_radius() * 1e6) + " µm";
+      break;
+    case v1::Geometry::kMeshFile:
+      return "mesh " + g.mesh_file();
+    default:
+      shape = "disk (default)";
+  }
+  return shape + ", ~" + std::to_string(g.target_elements()) + " elements";
+}
+
+void print_job(const v1::Job& job) {
+  KeyValues kv;
+  kv.add("id", job.id());
+  kv.add("name", job.name());
+  kv.add("state", state_name(job.state()));
+  const auto& p = job.progress();
+  std::string progress =
+      fmt_num(p.fraction() * 100.0, 4) + " %  (t = " + fmt_num(p.simulated_time() * 1e9, 5) +
+      " of " + fmt_ns(job.spec().run().end_time()) + ", " + std::to_string(p.steps()) + " steps";
+  if (p.dt() > 0) progress += ", dt = " + fmt_ns(p.dt());
+  kv.add("progress", progress + ")");
+  if (!job.reason().empty()) kv.add("reason", job.reason());
+  if (!job.error().empty()) kv.add("error", job.error());
+  kv.add("geometry", describe_geometry(job.spec()));
+  kv.add("end time", fmt_ns(job.spec().run().end_time()));
+  kv.add("labels", job.labels().empty() ? "-" : join_labels(job.labels()));
+  kv.add("priority", std::to_string(job.priority()));
+  kv.add("attempt", std::to_string(job.attempt()));
+  kv.add("created", fmt_timestamp(job.create_time()));
+  if (timestamp_set(job.start_time())) kv.add("started", fmt_timestamp(job.start_time()));
+  if (timestamp_set(job.finish_time())) {
+    kv.add("finished", fmt_timestamp(job.finish_time()));
+    if (timestamp_set(job.start_time())) {
+      kv.add("run time", fmt_duration(timestamp_seconds(job.finish_time()) -
+                                      timestamp_seconds(job.start_time())));
+    }
+  }
+  if (!job.result_path().empty()) kv.add("result", job.result_path());
+  if (!job.request_id().empty()) kv.add("request id", job.request_id());
+  if (!job.spec_hash().empty()) kv.add("spec hash", job.spec_hash());
+  kv.print(stdout);
+}
+
+v1::JobState parse_state(const std::string& text) {
+  std::string upper;
+  for (char c : text) upper += static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
+  v1::JobState state;
+  if (!v1::JobState_Parse(upper, &state) || state == v1::JOB_STATE_UNSPECIFIED) {
+    usage_error("--state: unknown state '" + text +
+                "' (QUEUED, RUNNING, SUCCEEDED, FAILED, CANCELLED)");
+  }
+  return state;
+}
+
+const std::string& single_id(const ParsedArgs& a) {
+  return a.positional.at(0);
+}
+
+}  // namespace
+
+int exit_for_final_state(const v1::Job& job) {
+  if (job.state() == v1::SUCCEEDED) return kExitOk;
+  std::string message = "job " + job.id() + " " + state_name(job.state());
+  if (!job.reason().empty()) message += " (" + job.reason() + ")";
+  if (!job.error().empty()) message += ": " + job.error();
+  throw CliError(kExitFailure, message);
+}
+
+v1::Job watch_until_done(Connection& conn, const std::string& id, bool json) {
+  ProgressDisplay display(stdout, json);
+  v1::WatchJobRequest request;
+  request.set_id(id);
+  using Clock = std::chrono::steady_clock;
+  // While the daemon is unreachable (a restart), keep trying for --timeout seconds before giving
+  // up; --timeout 0 (no deadlines) waits for it indefinitely.
+  const bool forever = conn.timeout_s() <= 0;
+  const auto patience = std::chrono::milliseconds(static_cast<int64_t>(conn.timeout_s() * 1000));
+  auto unreachable_since = Clock::time_point{};
+  bool warned = false;
+  v1::Job job;
+  for (;;) {
+    auto ctx = conn.context(/*with_deadline=*/false);
+    auto reader = conn.service().WatchJob(ctx.get(), request);
+    bool got_any = false;
+    while (reader->Read(&job)) {
+      got_any = true;
+      display.update(job);
+      if (is_terminal(job.state())) {
+        ctx->TryCancel();  // nothing more to hear; do not wait for the server to close
+        break;
+      }
+    }
+    grpc::Status status = reader->Finish();
+    if (is_terminal(job.state())) {
+      display.finish(job);
+      return job;
+    }
+    if (status.ok() || status.error_code() == grpc::StatusCode::UNAVAILABLE) {
+      // A stream that ends without a terminal state means the server went away (shutdown or
+      // crash): reconnect, since jobs survive daemon restarts.
+      if (got_any || unreachable_since == Clock::time_point{}) unreachable_since = Clock::now();
+      if (!forever && Clock::now() - unreachable_since > patience) {
+        throw status_error(
+            status.ok() ? grpc::Status(grpc::StatusCode::UNAVAILABLE, "watch stream ended early")
+                        : status,
+            conn.target());
+      }
+      if (!warned && !json) {
+        std::fprintf(stderr, "\nsoftshock: watch: lost the daemon, reconnecting...\n");
+        warned = true;
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(500));
+      continue;
+    }
+    throw status_error(status, conn.target());
+  }
+}
+
+int cmd_submit(const GlobalOptions& g, const ParsedArgs& a) {
+  const std::string& path = a.positional.at(0);
+  v1::SubmitJobRequest request;
+  // Options first: a typo in them is reported before the spec file is even opened.
+  for (const auto& l : a.all("label")) {
+    auto [k, v] = parse_label("label", l);
+    (*request.mutable_labels())[k] = v;
+  }
+  if (auto p = a.get("priority")) request.set_priority(parse_int32("priority", *p, INT32_MIN + 1));
+  // Always send a request_id: the connection retries UNAVAILABLE, and the id makes that safe.
+  request.set_request_id(a.get("request-id").value_or(make_uuid()));
+  bool wait = a.has("wait");
+
+  std::string text = read_file(path);
+  google::protobuf::util::JsonParseOptions parse;
+  parse.ignore_unknown_fields = false;  // a misspelt field must not silently become a default
+  auto st = google::protobuf::util::JsonStringToMessage(text, request.mutable_spec(), parse);
+  if (!st.ok()) {
+    usage_error(path + ": not a valid run spec: " + std::string(st.message()));
+  }
+
+  Connection conn(g);
+  v1::Job job;
+  conn.unary(
+      [&](grpc::ClientContext& ctx) { return conn.service().SubmitJob(&ctx, request, &job); });
+  if (g.json) {
+    std::printf("%s\n", to_json(job, !wait).c_str());
+  } else {
+    std::printf("%s\n", job.id().c_str());
+  }
+  std::fflush(stdout);
+  if (!wait) return kExitOk;
+  return exit_for_final_state(watch_until_done(conn, job.id(), g.json));
+}
+
+int cmd_status(const GlobalOptions& g, const ParsedArgs& a) {
+  Connection conn(g);
+  v1::GetJobRequest request;
+  request.set_id(single_id(a));
+  v1::Job job;
+  conn.unary([&](grpc::ClientContext& ctx) { return conn.service().GetJob(&ctx, request, &job); });
+  if (g.json) {
+    std::printf("%s\n", to_json(job).c_str());
+  } else {
+    print_job(job);
+  }
+  return kExitOk;
+}
+
+int cmd_watch(const GlobalOptions& g, const ParsedArgs& a) {
+  Connection conn(g);
+  return exit_for_final_state(watch_until_done(conn, single_id(a), g.json));
+}
+
+int cmd_list(const GlobalOptions& g, const ParsedArgs& a) {
+  v1::ListJobsRequest request;
+  if (auto s = a.get("state")) request.set_state(parse_state(*s));
+  auto labels = a.all("label");
+  if (labels.size() > 1) usage_error("--label: the server filters on one label at a time");
+  if (!labels.empty()) {
+    auto [k, v] = parse_label("label", labels[0]);
+    request.set_label(k + "=" + v);
+  }
+  int64_t limit = 100;
+  if (auto l = a.get("limit")) limit = parse_int("limit", *l);
+  if (limit < 0) usage_error("--limit: must be >= 0 (0 = no limit)");
+
+  Connection conn(g);
+  v1::ListJobsResponse all;
+  for (;;) {
+    int64_t want = limit == 0 ? 1000 : std::min<int64_t>(1000, limit - all.jobs_size());
+    request.set_page_size(static_cast<int32_t>(want));
+    v1::ListJobsResponse page;
+    conn.unary(
+        [&](grpc::ClientContext& ctx) { return conn.service().ListJobs(&ctx, request, &page); });
+    for (auto& job : *page.mutable_jobs()) {
+      if (limit != 0 && all.jobs_size() >= limit) break;
+      *all.add_jobs() = std::move(job);
+    }
+    all.set_next_page_token(page.next_page_token());
+    if (page.next_page_token().empty() || (limit != 0 && all.jobs_size() >= limit)) break;
+    request.set_page_token(page.next_page_token());
+  }
+  if (g.json) {
+    std::printf("%s\n", to_json(all).c_str());
+    return kExitOk;
+  }
+  std::vector<std::vector<std::string>> rows;
+  for (const auto& job : all.jobs()) {
+    std::string when = fmt_timestamp(job.create_time());
+    rows.push_back({job.id(), state_name(job.state()),
+                    fmt_num(job.progress().fraction() * 100.0, 3) + "%", when,
+                    job.labels().empty() ? "-" : join_labels(job.labels())});
+  }
+  print_table(stdout, {"ID", "STATE", "PROGRESS", "CREATED", "LABELS"}, rows);
+  if (!all.next_page_token().empty()) {
+    std::fprintf(stderr, "softshock: list: more jobs than --limit %lld; raise it to see them\n",
+                 static_cast<long long>(limit));
+  }
+  return kExitOk;
+}
+
+int cmd_cancel(const GlobalOptions& g, const ParsedArgs& a) {
+  Connection conn(g);
+  v1::CancelJobRequest request;
+  request.set_id(single_id(a));
+  v1::Job job;
+  conn.unary(
+      [&](grpc::ClientContext& ctx) { return conn.service().CancelJob(&ctx, request, &job); });
+  if (g.json) {
+    std::printf("%s\n", to_json(job).c_str());
+  } else {
+    KeyValues kv;
+    kv.add("id", job.id());
+    kv.add("state", state_name(job.state()));
+    if (!job.reason().empty()) kv.add("reason", job.reason());
+    kv.print(stdout);
+  }
+  return kExitOk;
+}
+
+int cmd_delete(const GlobalOptions& g, const ParsedArgs& a) {
+  Connection conn(g);
+  v1::DeleteJobRequest request;
+  request.set_id(single_id(a));
+  v1::DeleteJobResponse response;
+  conn.unary(
+      [&](grpc::ClientContext& ctx) { return conn.service().DeleteJob(&ctx, request, &response); });
+  if (g.json) {
+    std::printf("%s\n", to_json(response).c_str());
+  } else {
+    std::printf("deleted: %s\n", single_id(a).c_str());
+  }
+  return kExitOk;
+}
+
+int cmd_summary(const GlobalOptions& g, const ParsedArgs& a) {
+  Connection conn(g);
+  v1::GetJobSummaryRequest request;
+  request.set_id(single_id(a));
+  v1::JobSummary s;
+  conn.unary(
+      [&](grpc::ClientContext& ctx) { return conn.service().GetJobSummary(&ctx, request, &s); });
+  if (g.json) {
+    std::printf("%s\n", to_json(s).c_str());
+    return kExitOk;
+  }
+  const auto& n = s.groups();
+  KeyValues kv;
+  kv.add("id", s.id());
+  kv.add("elements", std::to_string(s.elements()));
+  kv.add("nodes", std::to_string(s.nodes()));
+  kv.add("steps", std::to_string(s.steps()));
+  kv.add("wall time", fmt_num(s.wall_time(), 4) + " s");
+  kv.add("simulated time", fmt_ns(s.end_time()));
+  if (s.steps() > 0 && s.elements() > 0 && s.wall_time() > 0) {
+    // Grind time, the figure explicit codes are compared by (LS-DYNA's "time per zone cycle").
+    kv.add("grind time",
+           fmt_num(s.wall_time() / (double(s.steps()) * double(s.elements())) * 1e9, 4) +
+               " ns per element-step");
+  }
+  kv.add("time scale R0/c0", fmt_ns(n.time_scale()));
+  kv.add("P-bar", fmt_num(n.pbar()));
+  kv.add("t-bar pulse", fmt_num(n.tbar_pulse()));
+  kv.add("mu-bar", fmt_num(n.mubar()));
+  kv.add("gamma", fmt_num(n.gamma()));
+  kv.add("C1, C2", fmt_num(n.c1()) + ", " + fmt_num(n.c2()));
+  kv.add("energy injected", fmt_num(s.energy_injected()) + " J/m");
+  kv.add("energy after pulse", fmt_num(s.energy_after_pulse()) + " J/m");
+  kv.add("max A-bar (t-bar <= 4)", fmt_num(s.max_abar_first_cycle()));
+  kv.add("max A-bar", fmt_num(s.max_abar()));
+  kv.add("dominant mode at end", std::to_string(s.dominant_mode_end()));
+  kv.add("shock at centre", s.shock_at_center() < 0 ? "not detected" : fmt_ns(s.shock_at_center()));
+  std::string rims;
+  for (double t : s.rim_reflections()) rims += (rims.empty() ? "" : ", ") + fmt_num(t * 1e9, 5);
+  kv.add("rim reflections", rims.empty() ? "none" : rims + " ns");
+  kv.add("dt range", fmt_num(s.min_dt() * 1e9, 4) + " .. " + fmt_ns(s.max_dt()));
+  kv.print(stdout);
+  return kExitOk;
+}
+
+int cmd_health(const GlobalOptions& g, const ParsedArgs& a) {
+  Connection conn(g);
+  grpc::health::v1::HealthCheckRequest request;
+  request.set_service(a.get("service").value_or(""));
+  grpc::health::v1::HealthCheckResponse response;
+  conn.unary(
+      [&](grpc::ClientContext& ctx) { return conn.health().Check(&ctx, request, &response); });
+  const std::string status =
+      grpc::health::v1::HealthCheckResponse_ServingStatus_Name(response.status());
+  if (g.json) {
+    std::printf("%s\n", to_json(response).c_str());
+  } else {
+    KeyValues kv;
+    kv.add("server", conn.target());
+    kv.add("status", status);
+    kv.print(stdout);
+  }
+  if (response.status() != grpc::health::v1::HealthCheckResponse::SERVING) {
+    throw CliError(kExitFailure, conn.target() + " is " + status);
+  }
+  return kExitOk;
+}
+
+}  // namespace softshock::cli

@@ -1,0 +1,462 @@
+// modes, series, field: reading a finished (or running) job's results.
+#include <fcntl.h>
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <charconv>
+#include <chrono>
+#include <cmath>
+#include <cstdlib>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <thread>
+
+#include "client/commands.hpp"
+#include "client/format.hpp"
+
+#ifndef SOFTSHOCK_PYTHON_EXE
+#define SOFTSHOCK_PYTHON_EXE "/usr/bin/python3"
+#endif
+#ifndef SOFTSHOCK_CLIENT_PYTHON_DIR
+#define SOFTSHOCK_CLIENT_PYTHON_DIR ""
+#endif
+
+extern char** environ;
+
+namespace softshock::cli {
+
+namespace {
+
+// Shortest text that reads back as the same double: CSV output loses nothing.
+std::string exact(double v) {
+  if (std::isnan(v)) return "nan";
+  char buf[32];
+  auto [end, ec] = std::to_chars(buf, buf + sizeof buf, v);
+  return ec == std::errc() ? std::string(buf, end) : fmt_num(v, 17);
+}
+
+int32_t parse_nonneg_int32(const std::string& option, const std::string& text) {
+  int64_t v = parse_int(option, text);
+  if (v < 0 || v > INT32_MAX) usage_error("--" + option + ": must be a non-negative integer");
+  return static_cast<int32_t>(v);
+}
+
+int32_t parse_every(const ParsedArgs& a) {
+  if (auto e = a.get("every")) {
+    int32_t k = parse_nonneg_int32("every", *e);
+    if (k < 1) usage_error("--every: must be >= 1");
+    return k;
+  }
+  return 0;
+}
+
+}  // namespace
+
+int cmd_modes(const GlobalOptions& g, const ParsedArgs& a) {
+  v1::GetModesRequest request;
+  request.set_id(a.positional.at(0));
+  request.set_every(parse_every(a));
+  if (auto m = a.get("mode-min")) request.set_mode_min(parse_nonneg_int32("mode-min", *m));
+  if (auto m = a.get("mode-max")) {
+    request.set_mode_max(parse_nonneg_int32("mode-max", *m));
+    if (request.mode_max() < request.mode_min()) usage_error("--mode-max is below --mode-min");
+  }
+  Connection conn(g);
+  v1::Modes modes;
+  conn.unary(
+      [&](grpc::ClientContext& ctx) { return conn.service().GetModes(&ctx, request, &modes); });
+  const std::size_t rows = static_cast<std::size_t>(modes.time_size());
+  const std::size_t cols = static_cast<std::size_t>(std::max(0, modes.mode_count()));
+  if (static_cast<std::size_t>(modes.amplitude_size()) != rows * cols) {
+    throw CliError(kExitFailure, "server sent " + std::to_string(modes.amplitude_size()) +
+                                     " amplitudes for " + std::to_string(rows) + " x " +
+                                     std::to_string(cols) + " (inconsistent reply)");
+  }
+  if (g.json) {
+    std::printf("%s\n", to_json(modes).c_str());
+    return kExitOk;
+  }
+  if (a.has("csv")) {
+    std::string line = "time";
+    for (std::size_t c = 0; c < cols; ++c) line += ",mode_" + std::to_string(modes.mode_min() + c);
+    std::printf("%s\n", line.c_str());
+    for (std::size_t r = 0; r < rows; ++r) {
+      line = exact(modes.time(static_cast<int>(r)));
+      for (std::size_t c = 0; c < cols; ++c) {
+        line.append(",").append(exact(modes.amplitude(static_cast<int>(r * cols + c))));
+      }
+      std::printf("%s\n", line.c_str());
+    }
+    return kExitOk;
+  }
+  std::vector<std::string> header = {"t (ns)"};
+  for (std::size_t c = 0; c < cols; ++c)
+    header.push_back("m=" + std::to_string(modes.mode_min() + c));
+  std::vector<std::vector<std::string>> table;
+  for (std::size_t r = 0; r < rows; ++r) {
+    std::vector<std::string> row = {fmt_num(modes.time(static_cast<int>(r)) * 1e9, 5)};
+    for (std::size_t c = 0; c < cols; ++c) {
+      row.push_back(fmt_num(modes.amplitude(static_cast<int>(r * cols + c)), 4));
+    }
+    table.push_back(std::move(row));
+  }
+  std::printf("# Fourier amplitudes of the rim radial displacement / R0\n");
+  print_table(stdout, header, table);
+  return kExitOk;
+}
+
+int cmd_series(const GlobalOptions& g, const ParsedArgs& a) {
+  v1::GetTimeSeriesRequest request;
+  request.set_id(a.positional.at(0));
+  request.set_every(parse_every(a));
+  for (const auto& n : a.all("name")) request.add_names(n);
+  Connection conn(g);
+  v1::TimeSeries ts;
+  conn.unary(
+      [&](grpc::ClientContext& ctx) { return conn.service().GetTimeSeries(&ctx, request, &ts); });
+  for (const auto& s : ts.series()) {
+    if (s.values_size() != ts.time_size()) {
+      throw CliError(kExitFailure, "series " + s.name() + " has " +
+                                       std::to_string(s.values_size()) + " values for " +
+                                       std::to_string(ts.time_size()) + " times");
+    }
+  }
+  if (g.json) {
+    std::printf("%s\n", to_json(ts).c_str());
+    return kExitOk;
+  }
+  if (a.has("csv")) {
+    std::string line = "time";
+    for (const auto& s : ts.series()) line += "," + csv_escape(s.name());
+    std::printf("%s\n", line.c_str());
+    for (int r = 0; r < ts.time_size(); ++r) {
+      line = exact(ts.time(r));
+      for (const auto& s : ts.series()) line.append(",").append(exact(s.values(r)));
+      std::printf("%s\n", line.c_str());
+    }
+    return kExitOk;
+  }
+  std::vector<std::string> header = {"t (ns)"};
+  for (const auto& s : ts.series()) {
+    header.push_back(s.units().empty() ? s.name() : s.name() + " (" + s.units() + ")");
+  }
+  std::vector<std::vector<std::string>> table;
+  for (int r = 0; r < ts.time_size(); ++r) {
+    std::vector<std::string> row = {fmt_num(ts.time(r) * 1e9, 5)};
+    for (const auto& s : ts.series()) row.push_back(fmt_num(s.values(r), 5));
+    table.push_back(std::move(row));
+  }
+  print_table(stdout, header, table);
+  return kExitOk;
+}
+
+namespace {
+
+struct FieldData {
+  v1::FieldHeader header;
+  std::vector<double> values;
+};
+
+FieldData fetch_field(Connection& conn, const v1::GetFieldRequest& request) {
+  // A server stream cannot be retried half-way by the generic helper: retry the whole call on
+  // UNAVAILABLE only before any chunk arrived.
+  for (int attempt = 1;; ++attempt) {
+    auto ctx = conn.context();
+    auto reader = conn.service().GetField(ctx.get(), request);
+    FieldData field;
+    v1::FieldChunk chunk;
+    bool have_header = false;
+    std::vector<bool> filled;  // catches gaps or overlaps in the chunk offsets
+    std::size_t filled_count = 0;
+    std::string protocol_error;
+    while (reader->Read(&chunk)) {
+      if (chunk.has_header()) {
+        field.header = chunk.header();
+        if (field.header.value_count() < 0 || field.header.value_count() > (int64_t(1) << 31)) {
+          protocol_error = "bad value_count " + std::to_string(field.header.value_count());
+          break;
+        }
+        field.values.assign(static_cast<std::size_t>(field.header.value_count()), std::nan(""));
+        filled.assign(field.values.size(), false);
+        have_header = true;
+      }
+      if (!have_header) {
+        protocol_error = "values before the header";
+        break;
+      }
+      const auto offset = chunk.offset();
+      if (offset < 0 ||
+          static_cast<std::size_t>(offset) + chunk.values_size() > field.values.size()) {
+        protocol_error = "chunk at offset " + std::to_string(offset) + " overruns the field";
+        break;
+      }
+      for (int i = 0; i < chunk.values_size(); ++i) {
+        std::size_t at = static_cast<std::size_t>(offset) + i;
+        field.values[at] = chunk.values(i);
+        if (!filled[at]) ++filled_count;
+        filled[at] = true;
+      }
+    }
+    if (!protocol_error.empty()) {
+      ctx->TryCancel();
+      reader->Finish();
+      throw CliError(kExitFailure, "field stream: " + protocol_error);
+    }
+    grpc::Status status = reader->Finish();
+    if (status.ok()) {
+      if (!have_header) throw CliError(kExitFailure, "field stream: no header");
+      if (filled_count != field.values.size()) {
+        throw CliError(kExitFailure, "field stream: got " + std::to_string(filled_count) + " of " +
+                                         std::to_string(field.values.size()) + " values");
+      }
+      return field;
+    }
+    if (status.error_code() == grpc::StatusCode::UNAVAILABLE && !have_header && attempt < 4) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(200 * attempt));
+      continue;
+    }
+    throw status_error(status, conn.target());
+  }
+}
+
+std::string self_exe_dir() {
+  std::error_code ec;
+  auto p = std::filesystem::read_symlink("/proc/self/exe", ec);
+  return ec ? std::string() : p.parent_path().string();
+}
+
+// Where the softshock_client package is: $SOFTSHOCK_PYTHONPATH, the installed copy next to
+// the binary (PREFIX/share/softshock/python), else the source tree this binary was built from.
+std::string client_python_path() {
+  if (const char* env = std::getenv("SOFTSHOCK_PYTHONPATH"); env && *env) return env;
+  std::string installed = self_exe_dir() + "/../share/softshock/python";
+  if (std::filesystem::exists(installed + "/softshock_client/plots.py")) return installed;
+  return SOFTSHOCK_CLIENT_PYTHON_DIR;
+}
+
+// Runs the plotting helper (matplotlib lives in Python; an image encoder here would be a
+// second, worse copy of it). Its stderr passes through so a missing package is visible.
+void run_python_plot(const std::vector<std::string>& args) {
+  const char* py_env = std::getenv("SOFTSHOCK_PYTHON");
+  std::string python = py_env && *py_env ? py_env : SOFTSHOCK_PYTHON_EXE;
+  std::string path = client_python_path();
+  if (const char* old = std::getenv("PYTHONPATH"); old && *old) path += std::string(":") + old;
+  std::vector<std::string> env_strings = {"PYTHONPATH=" + path, "MPLBACKEND=Agg"};
+  for (char** e = environ; *e; ++e) {
+    if (std::strncmp(*e, "PYTHONPATH=", 11) != 0 && std::strncmp(*e, "MPLBACKEND=", 11) != 0) {
+      env_strings.emplace_back(*e);
+    }
+  }
+  std::vector<std::string> argv_strings = {python, "-m", "softshock_client.plots"};
+  argv_strings.insert(argv_strings.end(), args.begin(), args.end());
+  std::vector<char*> argv, envp;
+  for (auto& s : argv_strings) argv.push_back(s.data());
+  argv.push_back(nullptr);
+  for (auto& s : env_strings) envp.push_back(s.data());
+  envp.push_back(nullptr);
+  std::fflush(stdout);
+  // The plot helper must not write to our stdout: JSON/scripted output stays clean.
+  posix_spawn_file_actions_t actions;
+  posix_spawn_file_actions_init(&actions);
+  posix_spawn_file_actions_adddup2(&actions, STDERR_FILENO, STDOUT_FILENO);
+  pid_t pid = 0;
+  int rc = posix_spawn(&pid, python.c_str(), &actions, nullptr, argv.data(), envp.data());
+  posix_spawn_file_actions_destroy(&actions);
+  if (rc != 0) {
+    throw CliError(kExitFailure, "cannot run " + python + " for the PNG: " + std::strerror(rc));
+  }
+  int wstatus = 0;
+  while (waitpid(pid, &wstatus, 0) < 0 && errno == EINTR) {
+  }
+  if (!WIFEXITED(wstatus) || WEXITSTATUS(wstatus) != 0) {
+    throw CliError(kExitFailure, "the plotting helper (" + python +
+                                     " -m softshock_client.plots) failed; PYTHONPATH=" + path);
+  }
+}
+
+class TempDir {
+ public:
+  TempDir() {
+    const char* base = std::getenv("TMPDIR");
+    std::string tmpl = std::string(base && *base ? base : "/tmp") + "/softshock-XXXXXX";
+    if (mkdtemp(tmpl.data()) == nullptr) {
+      throw CliError(kExitFailure,
+                     "cannot make a temporary directory: " + std::string(std::strerror(errno)));
+    }
+    path_ = tmpl;
+  }
+  ~TempDir() {
+    std::error_code ec;
+    std::filesystem::remove_all(path_, ec);
+  }
+  const std::string& path() const { return path_; }
+
+ private:
+  std::string path_;
+};
+
+void write_field_csv(const std::string& path, const FieldData& f) {
+  std::ofstream file;
+  std::ostream* out = &std::cout;
+  if (path != "-") {
+    file.open(path);
+    if (!file) throw CliError(kExitUsage, path + ": " + std::strerror(errno));
+    out = &file;
+  }
+  const auto& h = f.header;
+  const int comps = std::max(1, h.components());
+  const bool vector = comps == 2;
+  if (h.location() == "raster") {
+    // Cell centres in metres, so the file stands alone (no mesh needed to place the values).
+    *out << (vector ? "x,y,value_x,value_y\n" : "x,y,value\n");
+    const double dx = (h.x_max() - h.x_min()) / std::max(1, h.nx());
+    const double dy = (h.y_max() - h.y_min()) / std::max(1, h.ny());
+    for (int j = 0; j < h.ny(); ++j) {
+      for (int i = 0; i < h.nx(); ++i) {
+        std::size_t cell = static_cast<std::size_t>(j) * h.nx() + i;
+        *out << exact(h.x_min() + (i + 0.5) * dx) << ',' << exact(h.y_min() + (j + 0.5) * dy);
+        for (int c = 0; c < comps; ++c) *out << ',' << exact(f.values[cell * comps + c]);
+        *out << '\n';
+      }
+    }
+  } else {
+    // Index into the full node or element array (the sample k is index k * every).
+    *out << "index" << (vector ? ",value_x,value_y\n" : ",value\n");
+    const std::size_t every = static_cast<std::size_t>(std::max(1, h.every()));
+    for (std::size_t k = 0; k * comps < f.values.size(); ++k) {
+      *out << k * every;
+      for (int c = 0; c < comps; ++c) *out << ',' << exact(f.values[k * comps + c]);
+      *out << '\n';
+    }
+  }
+  out->flush();
+  if (!*out) throw CliError(kExitFailure, path + ": write failed");
+}
+
+void print_field_summary(const FieldData& f, const std::vector<std::string>& written) {
+  const auto& h = f.header;
+  std::size_t nan = 0, n = 0;
+  double lo = INFINITY, hi = -INFINITY, sum = 0;
+  const int comps = std::max(1, h.components());
+  // Statistics of the magnitude for vectors: a single min/max of interleaved x, y means little.
+  for (std::size_t k = 0; k * comps < f.values.size(); ++k) {
+    double v = 0;
+    if (comps == 1) {
+      v = f.values[k];
+    } else {
+      for (int c = 0; c < comps; ++c) v += f.values[k * comps + c] * f.values[k * comps + c];
+      v = std::sqrt(v);
+    }
+    if (std::isnan(v)) {
+      ++nan;
+      continue;
+    }
+    ++n;
+    lo = std::min(lo, v);
+    hi = std::max(hi, v);
+    sum += v;
+  }
+  KeyValues kv;
+  kv.add("field", h.name() + (h.units().empty() ? "" : " (" + h.units() + ")"));
+  kv.add("frame", std::to_string(h.frame()));
+  kv.add("time", fmt_ns(h.time()));
+  kv.add("location", h.location());
+  kv.add("components", std::to_string(comps));
+  if (h.location() == "raster") {
+    kv.add("raster", std::to_string(h.nx()) + " x " + std::to_string(h.ny()));
+    kv.add("extent", "x " + fmt_num(h.x_min() * 1e6) + " .. " + fmt_num(h.x_max() * 1e6) +
+                         " µm, y " + fmt_num(h.y_min() * 1e6) + " .. " + fmt_num(h.y_max() * 1e6) +
+                         " µm");
+  } else {
+    kv.add("every", std::to_string(std::max(1, h.every())));
+  }
+  kv.add("values", std::to_string(f.values.size() / comps) +
+                       (nan ? " (" + std::to_string(nan) + " outside the body)" : ""));
+  std::string what = comps == 1 ? "" : " |v|";
+  if (n > 0) {
+    kv.add("min" + what, fmt_num(lo));
+    kv.add("max" + what, fmt_num(hi));
+    kv.add("mean" + what, fmt_num(sum / n));
+  }
+  for (const auto& w : written) kv.add("wrote", w);
+  kv.print(stdout);
+}
+
+}  // namespace
+
+int cmd_field(const GlobalOptions& g, const ParsedArgs& a) {
+  v1::GetFieldRequest request;
+  request.set_id(a.positional.at(0));
+  auto name = a.get("name");
+  if (!name || name->empty())
+    usage_error(
+        "--name is required (J, mean_stress, hoop_stress, "
+        "radial_stress, von_mises, displacement, velocity)");
+  request.set_name(*name);
+  if (a.has("time") && a.has("frame")) usage_error("give --time or --frame, not both");
+  if (auto t = a.get("time")) request.set_time(parse_time_seconds("time", *t));
+  if (auto k = a.get("frame")) request.set_frame(parse_nonneg_int32("frame", *k));
+  if (a.has("raster") && a.has("every")) usage_error("give --raster or --every, not both");
+  if (auto r = a.get("raster")) {
+    auto [nx, ny] = parse_raster("raster", *r);
+    request.mutable_raster()->set_nx(nx);
+    request.mutable_raster()->set_ny(ny);
+  }
+  if (a.has("every")) request.set_every(parse_every(a));
+  auto png = a.get("png");
+  auto csv = a.get("csv");
+  if (png) {
+    if (a.has("every")) usage_error("--png needs a raster (--raster NXxNY), not --every");
+    // A picture needs values on a grid; 256 x 256 resolves the baseline disk's elements.
+    if (!request.has_raster()) {
+      request.mutable_raster()->set_nx(256);
+      request.mutable_raster()->set_ny(256);
+    }
+  }
+
+  Connection conn(g);
+  FieldData field = fetch_field(conn, request);
+  const auto& h = field.header;
+  std::vector<std::string> written;
+  if (csv) {
+    write_field_csv(*csv, field);
+    if (*csv != "-") written.push_back(*csv);
+  }
+  if (png) {
+    if (h.location() != "raster" || h.nx() < 1 || h.ny() < 1) {
+      throw CliError(kExitFailure, "server did not return a raster for the PNG");
+    }
+    TempDir tmp;
+    const std::string npy = tmp.path() + "/field.npy";
+    std::vector<std::size_t> shape = {static_cast<std::size_t>(h.ny()),
+                                      static_cast<std::size_t>(h.nx())};
+    if (h.components() > 1) shape.push_back(static_cast<std::size_t>(h.components()));
+    write_npy(npy, field.values, shape);
+    // "--opt=value" throughout: a negative number as a separate word would look like an option
+    // to argparse, and so would a name or path starting with '-'.
+    run_python_plot({"field-raster", "--npy=" + npy, "--x-min=" + exact(h.x_min()),
+                     "--x-max=" + exact(h.x_max()), "--y-min=" + exact(h.y_min()),
+                     "--y-max=" + exact(h.y_max()), "--name=" + h.name(), "--units=" + h.units(),
+                     "--time=" + exact(h.time()), "--frame=" + std::to_string(h.frame()),
+                     "--out=" + *png});
+    written.push_back(*png);
+  }
+  if (csv && *csv == "-") return kExitOk;  // stdout carries the CSV: nothing else may go there
+  if (g.json) {
+    v1::FieldChunk whole;
+    *whole.mutable_header() = h;
+    if (!csv && !png) {
+      whole.mutable_values()->Assign(field.values.begin(), field.values.end());
+    }
+    std::printf("%s\n", to_json(whole).c_str());
+  } else {
+    print_field_summary(field, written);
+  }
+  return kExitOk;
+}
+
+}  // namespace softshock::cli

@@ -1,0 +1,357 @@
+"""Python client of softshockd, the softshock simulation daemon (API: proto/softshock/v1).
+
+The generated stubs are built, not committed::
+
+    cmake --build build --target softshock_python
+    export PYTHONPATH=$PWD/build/python:$PWD/client/python
+    /usr/bin/python3 -c 'import softshock_client'
+
+Example::
+
+    from softshock_client import Client
+    with Client("127.0.0.1:50051") as c:
+        job = c.submit({"run": {"endTime": 2e-8}}, labels={"study": "demo"}, wait=True)
+        print(c.summary(job.id)["max_abar"])
+        series = c.series(job.id)            # {"time": array, "abar": array, ...}
+        raster = c.field(job.id, "mean_stress", raster=(256, 256))
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import time
+import uuid
+from dataclasses import dataclass, field as dc_field
+from typing import Dict, Iterator, List, Optional, Tuple, Union
+
+import grpc
+import numpy as np
+from google.protobuf import json_format
+
+try:
+    from softshock.v1 import service_pb2, service_pb2_grpc, spec_pb2
+    from softshock_health import health_pb2, health_pb2_grpc
+except ImportError as exc:  # pragma: no cover - depends on the environment
+    raise ImportError(
+        "softshock_client needs the stubs generated from proto/: run "
+        "`cmake --build build --target softshock_python` and put build/python on PYTHONPATH "
+        "(PYTHONPATH=build/python:client/python)") from exc
+
+DEFAULT_SERVER = "127.0.0.1:50051"
+TERMINAL_STATES = frozenset(
+    {service_pb2.SUCCEEDED, service_pb2.FAILED, service_pb2.CANCELLED})
+
+
+class SoftshockError(Exception):
+    """A failed call: `code` is the grpc.StatusCode, `details` the server's message."""
+
+    def __init__(self, code: grpc.StatusCode, details: str):
+        super().__init__(f"{details} ({code.name})")
+        self.code = code
+        self.details = details
+
+
+class SpecError(ValueError):
+    """The run spec could not be read or parsed (found before anything is sent)."""
+
+
+def state_name(state_or_job) -> str:
+    """Name of a JobState value (or of a Job's state); tolerates values newer than this client."""
+    value = getattr(state_or_job, "state", state_or_job)
+    try:
+        return service_pb2.JobState.Name(value)
+    except ValueError:
+        return f"JobState({value})"
+
+
+class SeriesDict(dict):
+    """name -> numpy array (with "time" in s); `units` maps each name to its unit string."""
+
+    def __init__(self, *args, units: Optional[Dict[str, str]] = None, **kwargs):
+        super().__init__(*args, **kwargs)
+        self.units = dict(units or {})
+
+
+@dataclass
+class FieldData:
+    """A field frame. `values` is (ny, nx) for scalar rasters, (ny, nx, 2) for vector rasters,
+    (n,) or (n, 2) for node/element samples. Raster cells outside the body are NaN. `extent` is
+    (x_min, x_max, y_min, y_max) in m for rasters, else None.
+
+    Unpacks as ``values, extent = client.field(...)`` and converts with ``np.asarray``.
+    """
+
+    values: np.ndarray
+    extent: Optional[Tuple[float, float, float, float]]
+    name: str
+    units: str
+    time: float
+    frame: int
+    location: str
+    every: int = 1
+    header: object = dc_field(default=None, repr=False)
+
+    def __iter__(self):
+        return iter((self.values, self.extent))
+
+    def __array__(self, dtype=None):
+        return self.values if dtype is None else self.values.astype(dtype)
+
+
+def message_to_dict(message) -> dict:
+    """Fields (defaults included) by proto name with Python values. Unlike json_format, int64
+    stays int rather than becoming a string (the JSON mapping's rule for 64-bit integers)."""
+    out = {}
+    for f in message.DESCRIPTOR.fields:
+        value = getattr(message, f.name)
+        if f.message_type is not None and f.label != f.LABEL_REPEATED:
+            value = message_to_dict(value)
+        elif f.label == f.LABEL_REPEATED:
+            value = [message_to_dict(v) if f.message_type is not None else v for v in value]
+        out[f.name] = value
+    return out
+
+
+def load_spec(spec) -> spec_pb2.RunSpec:
+    """A RunSpec from a dict (protobuf JSON mapping), a path to a JSON file, a JSON string or a
+    RunSpec message. Unknown fields are errors: a misspelt key must not become a default."""
+    if isinstance(spec, spec_pb2.RunSpec):
+        return spec
+    source = "spec"
+    if isinstance(spec, (str, os.PathLike)):
+        text = str(spec)
+        if not text.lstrip().startswith("{"):
+            source = text
+            try:
+                with open(text, encoding="utf-8") as f:
+                    text = f.read()
+            except OSError as exc:
+                raise SpecError(f"{source}: {exc.strerror}") from exc
+        try:
+            spec = json.loads(text)
+        except json.JSONDecodeError as exc:
+            raise SpecError(f"{source}: not JSON: {exc}") from exc
+    if not isinstance(spec, dict):
+        raise SpecError(f"{source}: expected a JSON object, got {type(spec).__name__}")
+    try:
+        return json_format.ParseDict(spec, spec_pb2.RunSpec(), ignore_unknown_fields=False)
+    except json_format.ParseError as exc:
+        raise SpecError(f"{source}: not a valid run spec: {exc}") from exc
+
+
+class Client:
+    """Connection to softshockd. Every unary call has a deadline of `timeout` seconds (watch has
+    none); UNAVAILABLE is retried briefly (submits carry a request_id, so retries are safe)."""
+
+    def __init__(self, server: Optional[str] = None, token: Optional[str] = None,
+                 tls_ca: Optional[Union[str, bytes, os.PathLike]] = None,
+                 timeout: Optional[float] = 30):
+        self.server = server or os.environ.get("SOFTSHOCK_SERVER") or DEFAULT_SERVER
+        self.timeout = timeout
+        self._metadata = (("authorization", f"Bearer {token.strip()}"),) if token else ()
+        # Field chunks stay well under 1 MiB, but a full ListJobs page (specs included) may not.
+        options = [("grpc.max_receive_message_length", 64 * 1024 * 1024)]
+        if tls_ca is not None:
+            pem = tls_ca
+            if not isinstance(pem, bytes):
+                with open(pem, "rb") as f:
+                    pem = f.read()
+            creds = grpc.ssl_channel_credentials(root_certificates=pem)
+            self._channel = grpc.secure_channel(self.server, creds, options=options)
+        else:
+            self._channel = grpc.insecure_channel(self.server, options=options)
+        self._stub = service_pb2_grpc.SimulationServiceStub(self._channel)
+        self._health = health_pb2_grpc.HealthStub(self._channel)
+
+    # -- plumbing ------------------------------------------------------------------------------
+    def close(self) -> None:
+        self._channel.close()
+
+    def __enter__(self) -> "Client":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def _call(self, method, request, attempts: int = 4):
+        delay = 0.2
+        deadline = None if self.timeout is None else time.monotonic() + self.timeout
+        for attempt in range(1, attempts + 1):
+            try:
+                return method(request, timeout=self.timeout, metadata=self._metadata)
+            except grpc.RpcError as exc:
+                code = exc.code()
+                retry = (code == grpc.StatusCode.UNAVAILABLE and attempt < attempts and
+                         (deadline is None or time.monotonic() + delay < deadline))
+                if not retry:
+                    raise SoftshockError(code, exc.details() or "") from None
+            time.sleep(delay)
+            delay = min(delay * 2, 2.0)
+        raise AssertionError("unreachable")
+
+    # -- jobs ----------------------------------------------------------------------------------
+    def submit(self, spec, labels: Optional[Dict[str, str]] = None, wait: bool = False,
+               priority: int = 0, request_id: Optional[str] = None):
+        """Submits a run; returns the Job (the final one when wait=True)."""
+        request = service_pb2.SubmitJobRequest(
+            spec=load_spec(spec), labels=dict(labels or {}), priority=priority,
+            request_id=request_id or str(uuid.uuid4()))
+        job = self._call(self._stub.SubmitJob, request)
+        if wait:
+            return self.wait(job.id)
+        return job
+
+    def get(self, job_id: str):
+        return self._call(self._stub.GetJob, service_pb2.GetJobRequest(id=job_id))
+
+    def list(self, state: Optional[Union[str, int]] = None, label: Optional[str] = None,
+             limit: Optional[int] = None, page_size: int = 0) -> List:
+        """Jobs, newest first, following page tokens until `limit` (None = all)."""
+        request = service_pb2.ListJobsRequest(label=label or "")
+        if state is not None:
+            request.state = service_pb2.JobState.Value(state) if isinstance(state, str) else state
+        jobs = []
+        while True:
+            if limit is not None:
+                request.page_size = min(1000, limit - len(jobs))
+                if request.page_size <= 0:
+                    break
+            elif page_size:
+                request.page_size = page_size
+            page = self._call(self._stub.ListJobs, request)
+            jobs.extend(page.jobs)
+            if not page.next_page_token:
+                break
+            request.page_token = page.next_page_token
+        return jobs if limit is None else jobs[:limit]
+
+    def watch(self, job_id: str, patience: float = 30.0) -> Iterator:
+        """Yields the job now and on every change; ends after a terminal state. Reconnects when
+        the daemon goes away (jobs survive restarts) for up to `patience` seconds."""
+        request = service_pb2.WatchJobRequest(id=job_id)
+        lost_since = None
+        while True:
+            stream = self._stub.WatchJob(request, metadata=self._metadata)
+            job = None
+            try:
+                for job in stream:
+                    lost_since = None
+                    yield job
+                    if job.state in TERMINAL_STATES:
+                        stream.cancel()
+                        return
+            except grpc.RpcError as exc:
+                if exc.code() != grpc.StatusCode.UNAVAILABLE:
+                    raise SoftshockError(exc.code(), exc.details() or "") from None
+            finally:
+                stream.cancel()
+            # The stream ended without a terminal state: the server went away. Try again.
+            now = time.monotonic()
+            lost_since = lost_since or now
+            if now - lost_since > patience:
+                raise SoftshockError(grpc.StatusCode.UNAVAILABLE,
+                                     f"lost softshockd at {self.server} while watching {job_id}")
+            time.sleep(0.5)
+
+    def wait(self, job_id: str, timeout: Optional[float] = None):
+        """Blocks until the job is terminal; returns the final Job."""
+        start = time.monotonic()
+        last = None
+        for last in self.watch(job_id):
+            if timeout is not None and time.monotonic() - start > timeout:
+                raise TimeoutError(f"job {job_id} still {state_name(last)} after {timeout} s")
+        return last
+
+    def cancel(self, job_id: str):
+        return self._call(self._stub.CancelJob, service_pb2.CancelJobRequest(id=job_id))
+
+    def delete(self, job_id: str) -> None:
+        self._call(self._stub.DeleteJob, service_pb2.DeleteJobRequest(id=job_id))
+
+    def health(self, service: str = "") -> str:
+        """grpc.health.v1 status name, e.g. "SERVING"."""
+        response = self._call(self._health.Check, health_pb2.HealthCheckRequest(service=service))
+        return health_pb2.HealthCheckResponse.ServingStatus.Name(response.status)
+
+    # -- results -------------------------------------------------------------------------------
+    def summary(self, job_id: str) -> dict:
+        """The run's figures as a dict with the proto's snake_case names (SI units)."""
+        s = self._call(self._stub.GetJobSummary, service_pb2.GetJobSummaryRequest(id=job_id))
+        return message_to_dict(s)
+
+    def series(self, job_id: str, names: Optional[List[str]] = None,
+               every: Optional[int] = None) -> SeriesDict:
+        ts = self._call(self._stub.GetTimeSeries, service_pb2.GetTimeSeriesRequest(
+            id=job_id, names=list(names or []), every=every or 0))
+        out = SeriesDict(units={"time": "s"})
+        out["time"] = np.asarray(ts.time, dtype=float)
+        for s in ts.series:
+            out[s.name] = np.asarray(s.values, dtype=float)
+            out.units[s.name] = s.units
+        return out
+
+    def modes(self, job_id: str, every: Optional[int] = None, mode_min: Optional[int] = None,
+              mode_max: Optional[int] = None) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(time in s, mode numbers, amplitude / R0 as a len(time) x len(modes) array)."""
+        m = self._call(self._stub.GetModes, service_pb2.GetModesRequest(
+            id=job_id, every=every or 0, mode_min=mode_min or 0, mode_max=mode_max or 0))
+        t = np.asarray(m.time, dtype=float)
+        amp = np.asarray(m.amplitude, dtype=float)
+        if amp.size != t.size * m.mode_count:
+            raise SoftshockError(grpc.StatusCode.INTERNAL,
+                                 f"{amp.size} amplitudes for {t.size} x {m.mode_count}")
+        return t, np.arange(m.mode_min, m.mode_min + m.mode_count), amp.reshape(t.size,
+                                                                                 m.mode_count)
+
+    def field(self, job_id: str, name: str, time: Optional[float] = None,
+              frame: Optional[int] = None, raster: Optional[Tuple[int, int]] = None,
+              every: Optional[int] = None) -> FieldData:
+        """A field frame (nearest to `time` in s, or index `frame`; default the last one), either
+        interpolated on an nx x ny raster over the deformed body or every k-th node/element."""
+        if time is not None and frame is not None:
+            raise ValueError("give time or frame, not both")
+        if raster is not None and every is not None:
+            raise ValueError("give raster or every, not both")
+        request = service_pb2.GetFieldRequest(id=job_id, name=name)
+        if time is not None:
+            request.time = time
+        if frame is not None:
+            request.frame = frame
+        if raster is not None:
+            request.raster.nx, request.raster.ny = int(raster[0]), int(raster[1])
+        if every is not None:
+            request.every = every
+        try:
+            chunks = self._stub.GetField(request, timeout=self.timeout, metadata=self._metadata)
+            header, values, seen = None, None, 0
+            for chunk in chunks:
+                if chunk.HasField("header"):
+                    header = chunk.header
+                    values = np.full(header.value_count, np.nan)
+                if header is None:
+                    raise SoftshockError(grpc.StatusCode.INTERNAL, "field values before header")
+                n = len(chunk.values)
+                if chunk.offset < 0 or chunk.offset + n > values.size:
+                    raise SoftshockError(grpc.StatusCode.INTERNAL,
+                                         f"field chunk at {chunk.offset} overruns {values.size}")
+                values[chunk.offset:chunk.offset + n] = chunk.values
+                seen += n
+        except grpc.RpcError as exc:
+            raise SoftshockError(exc.code(), exc.details() or "") from None
+        if header is None:
+            raise SoftshockError(grpc.StatusCode.INTERNAL, "field stream without header")
+        if seen != values.size:
+            raise SoftshockError(grpc.StatusCode.INTERNAL,
+                                 f"field stream carried {seen} of {values.size} values")
+        comps = max(1, header.components)
+        extent = None
+        if header.location == "raster":
+            shape = (header.ny, header.nx) + ((comps,) if comps > 1 else ())
+            values = values.reshape(shape)
+            extent = (header.x_min, header.x_max, header.y_min, header.y_max)
+        elif comps > 1:
+            values = values.reshape(-1, comps)
+        return FieldData(values=values, extent=extent, name=header.name, units=header.units,
+                         time=header.time, frame=header.frame, location=header.location,
+                         every=max(1, header.every), header=header)

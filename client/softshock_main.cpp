@@ -1,0 +1,219 @@
+// softshock: command-line client of softshockd (docs: client/README.md).
+//
+//   softshock [--server HOST:PORT] [--token-file F] [--tls-ca F] [--json] [--timeout S]
+//             COMMAND [ARGS]
+//
+// Exit codes: 0 success, 1 server-side failure / unreachable / job did not succeed, 2 usage or
+// invalid input (including INVALID_ARGUMENT from the server). Errors are one line on stderr:
+// "softshock: COMMAND: message (GRPC_CODE)".
+#include <cstdio>
+#include <cstdlib>
+#include <exception>
+#include <string>
+#include <vector>
+
+#include "client/commands.hpp"
+
+namespace softshock::cli {
+namespace {
+
+const std::vector<OptionSpec> kGlobalOptions = {
+    {"server", true}, {"token-file", true}, {"tls-ca", true},
+    {"json", false},  {"timeout", true},    {"help", false},
+};
+
+const std::vector<Command>& commands() {
+  static const std::vector<Command> table = {
+      {"submit",
+       "SPEC.json [--label k=v]... [--priority N] [--request-id ID] [--wait]",
+       "submit a run spec (protobuf JSON, '-' = stdin); prints the job id",
+       {{"label", true}, {"priority", true}, {"request-id", true}, {"wait", false}},
+       1,
+       1,
+       cmd_submit},
+      {"status", "ID", "show a job", {}, 1, 1, cmd_status},
+      {"watch", "ID", "follow a job to its end (exit 0 only if it SUCCEEDED)", {}, 1, 1, cmd_watch},
+      {"list",
+       "[--state S] [--label k=v] [--limit N]",
+       "list jobs, newest first (--limit 0 = all; default 100)",
+       {{"state", true}, {"label", true}, {"limit", true}},
+       0,
+       0,
+       cmd_list},
+      {"cancel", "ID", "cancel a queued or running job", {}, 1, 1, cmd_cancel},
+      {"delete", "ID", "delete a finished job and its results", {}, 1, 1, cmd_delete},
+      {"summary",
+       "ID",
+       "the run's figures (energies, A-bar, modes, shock times)",
+       {},
+       1,
+       1,
+       cmd_summary},
+      {"modes",
+       "ID [--csv] [--every K] [--mode-min A --mode-max B]",
+       "Fourier mode amplitudes of the rim over time",
+       {{"csv", false}, {"every", true}, {"mode-min", true}, {"mode-max", true}},
+       1,
+       1,
+       cmd_modes},
+      {"series",
+       "ID [--csv] [--every K] [--name N]...",
+       "time series (A-bar, energies, ...)",
+       {{"csv", false}, {"every", true}, {"name", true}},
+       1,
+       1,
+       cmd_series},
+      {"field",
+       "ID --name J|mean_stress|hoop_stress|radial_stress|von_mises|displacement|velocity\n"
+       "                 [--time T | --frame K] [--raster NXxNY | --every K]"
+       " [--csv FILE] [--png FILE]",
+       "a field frame: statistics, CSV ('-' = stdout) or a PNG plot (raster, default 256x256)",
+       {{"name", true},
+        {"time", true},
+        {"frame", true},
+        {"raster", true},
+        {"every", true},
+        {"csv", true},
+        {"png", true}},
+       1,
+       1,
+       cmd_field},
+      {"health",
+       "[--service NAME]",
+       "grpc.health.v1 check (exit 0 when SERVING)",
+       {{"service", true}},
+       0,
+       0,
+       cmd_health},
+  };
+  return table;
+}
+
+void print_usage(std::FILE* out) {
+  std::fprintf(out,
+               "usage: softshock [--server HOST:PORT] [--token-file FILE] [--tls-ca FILE] "
+               "[--json] [--timeout S] COMMAND [ARGS]\n\n"
+               "  --server      daemon address (env SOFTSHOCK_SERVER; default 127.0.0.1:50051)\n"
+               "  --token-file  send 'authorization: Bearer TOKEN' (token read from FILE)\n"
+               "  --tls-ca      use TLS, trusting this root CA (PEM); default: plaintext\n"
+               "  --json        print responses in protobuf's JSON mapping\n"
+               "  --timeout     deadline per call in seconds (default 30; 0 = none); watch has "
+               "no deadline\n                but reconnects across daemon restarts for this "
+               "long\n\ncommands:\n");
+  for (const auto& c : commands()) {
+    std::fprintf(out, "  %-8s %s\n           %s\n", c.name, c.synopsis, c.help);
+  }
+  std::fprintf(out,
+               "\ntimes for --time take a unit suffix (40ns, 0.04us) or are in seconds.\n"
+               "exit codes: 0 ok, 1 server-side failure or job not SUCCEEDED, 2 usage or "
+               "invalid input\n");
+}
+
+void apply_global(GlobalOptions& g, const ParsedArgs& parsed) {
+  if (auto s = parsed.get("server")) g.server = *s;
+  if (auto t = parsed.get("token-file")) g.token_file = *t;
+  if (auto c = parsed.get("tls-ca")) g.tls_ca = *c;
+  if (parsed.has("json")) g.json = true;
+  if (auto t = parsed.get("timeout")) {
+    g.timeout_s = parse_double("timeout", *t);
+    if (g.timeout_s < 0) usage_error("--timeout: must be >= 0");
+  }
+  if (g.server.empty()) usage_error("--server: empty address");
+}
+
+int run(int argc, char** argv, std::string& command_name) {
+  std::vector<std::string> args(argv + 1, argv + argc);
+  GlobalOptions g;
+  if (const char* env = std::getenv("SOFTSHOCK_SERVER"); env && *env) g.server = env;
+
+  // Global options come before the command word; they are also accepted after it (users put
+  // --json at the end), so the command's option table is extended with them below.
+  std::size_t i = 0;
+  std::vector<std::string> leading;
+  while (i < args.size() && args[i].rfind("-", 0) == 0 && args[i] != "-") {
+    leading.push_back(args[i]);
+    const std::string name = args[i].substr(2, args[i].find('=') - 2);
+    bool needs_value =
+        args[i].find('=') == std::string::npos &&
+        (name == "server" || name == "token-file" || name == "tls-ca" || name == "timeout");
+    ++i;
+    if (needs_value && i < args.size()) leading.push_back(args[i++]);
+  }
+  ParsedArgs global = parse_options(leading, kGlobalOptions);
+  if (global.has("help") || i == args.size()) {
+    print_usage(global.has("help") ? stdout : stderr);
+    return global.has("help") ? kExitOk : kExitUsage;
+  }
+  command_name = args[i];
+  if (command_name == "help") {
+    print_usage(stdout);
+    return kExitOk;
+  }
+  const Command* cmd = nullptr;
+  for (const auto& c : commands()) {
+    if (command_name == c.name) cmd = &c;
+  }
+  if (cmd == nullptr) {
+    std::string unknown = command_name;
+    command_name.clear();
+    usage_error("unknown command '" + unknown + "' (softshock --help lists them)");
+  }
+  std::vector<OptionSpec> specs = cmd->options;
+  specs.insert(specs.end(), kGlobalOptions.begin(), kGlobalOptions.end());
+  ParsedArgs parsed =
+      parse_options(std::vector<std::string>(args.begin() + i + 1, args.end()), specs);
+  if (parsed.has("help")) {
+    std::printf("usage: softshock %s %s\n  %s\n", cmd->name, cmd->synopsis, cmd->help);
+    return kExitOk;
+  }
+  apply_global(g, global);
+  apply_global(g, parsed);
+  if (parsed.positional.size() < cmd->min_positional ||
+      parsed.positional.size() > cmd->max_positional) {
+    usage_error(std::string("usage: softshock ") + cmd->name + " " + cmd->synopsis);
+  }
+  for (const auto& p : parsed.positional) {
+    if (p.empty()) usage_error("empty argument");
+  }
+  return cmd->run(g, parsed);
+}
+
+}  // namespace
+}  // namespace softshock::cli
+
+namespace {
+
+// The error contract is one line on stderr (scripts grep it; log collectors split on lines),
+// but some messages span several (protobuf's JSON parser adds the offending text and a caret).
+std::string one_line(const std::string& message) {
+  std::string out;
+  std::size_t start = 0;
+  while (start <= message.size()) {
+    std::size_t end = message.find('\n', start);
+    if (end == std::string::npos) end = message.size();
+    std::string part = softshock::cli::trim(std::string_view(message).substr(start, end - start));
+    // A line of only a caret points into the previous line; without the layout it means nothing.
+    if (!part.empty() && part != "^") out += (out.empty() ? "" : "; ") + part;
+    start = end + 1;
+  }
+  return out;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  std::string command;
+  try {
+    return softshock::cli::run(argc, argv, command);
+  } catch (const softshock::cli::CliError& e) {
+    std::fflush(stdout);
+    std::fprintf(stderr, "softshock: %s%s%s\n", command.c_str(), command.empty() ? "" : ": ",
+                 one_line(e.what()).c_str());
+    return e.exit_code();
+  } catch (const std::exception& e) {
+    std::fflush(stdout);
+    std::fprintf(stderr, "softshock: %s%sinternal error: %s\n", command.c_str(),
+                 command.empty() ? "" : ": ", one_line(e.what()).c_str());
+    return softshock::cli::kExitFailure;
+  }
+}

@@ -1,0 +1,229 @@
+#include "server/daemon.hpp"
+
+#include <fcntl.h>
+#include <grpcpp/ext/proto_server_reflection_plugin.h>
+#include <grpcpp/grpcpp.h>
+#include <grpcpp/health_check_service_interface.h>
+#include <sys/file.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <thread>
+
+#include "server/auth.hpp"
+#include "server/catalogue.hpp"
+#include "server/job_events.hpp"
+#include "server/job_runner.hpp"
+#include "server/log.hpp"
+#include "server/scheduler.hpp"
+#include "server/simulation_service.hpp"
+
+namespace softshock::server {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+std::string read_file(const std::string& path, const char* what) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw std::runtime_error(std::string("cannot read ") + what + " " + path);
+  std::ostringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+// tmp + rename: a test polling the file never reads a partial number.
+void write_port_file(const std::string& path, int port) {
+  const std::string tmp = path + ".tmp";
+  {
+    std::ofstream out(tmp, std::ios::trunc);
+    out << port << "\n";
+    if (!out) throw std::runtime_error("cannot write port file " + tmp);
+  }
+  fs::rename(tmp, path);
+}
+
+}  // namespace
+
+struct Daemon::Impl {
+  DaemonConfig config;
+  int lock_fd = -1;
+  std::unique_ptr<Catalogue> catalogue;
+  JobEvents events;
+  std::unique_ptr<JobRunner> runner;
+  std::unique_ptr<Authenticator> auth;
+  std::unique_ptr<Scheduler> scheduler;
+  std::unique_ptr<SimulationService> service;
+  std::unique_ptr<grpc::Server> server;
+  int port = 0;
+  bool stopped = false;
+
+  ~Impl() {
+    if (lock_fd >= 0) ::close(lock_fd);
+  }
+
+  void lock_data_dir() {
+    const std::string path = (fs::path(config.data_dir) / "softshockd.lock").string();
+    lock_fd = ::open(path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+    if (lock_fd < 0) throw std::runtime_error("cannot open " + path);
+    // flock is released by the kernel when the process dies, even by kill -9.
+    if (::flock(lock_fd, LOCK_EX | LOCK_NB) != 0) {
+      throw std::runtime_error("another softshockd is using " + config.data_dir);
+    }
+  }
+
+  void recover() {
+    const RecoveryReport report = catalogue->recover(config.max_attempts, now_us());
+    for (const auto& id : report.requeued) {
+      log_warning("job ", id, " was RUNNING when the daemon stopped: requeued (INTERRUPTED)");
+    }
+    for (const auto& id : report.failed) {
+      log_warning("job ", id, " was RUNNING when the daemon stopped: FAILED (MAX_ATTEMPTS)");
+    }
+    // Leftovers: temporary result files of interrupted runs, folders of deleted jobs.
+    std::error_code ec;
+    for (const auto& entry : fs::directory_iterator(fs::path(config.data_dir) / "jobs", ec)) {
+      if (!entry.is_directory()) continue;
+      const std::string id = entry.path().filename().string();
+      if (!catalogue->get(id)) {
+        log_info("removing ", entry.path().string(), " (no such job in the catalogue)");
+        fs::remove_all(entry.path(), ec);
+      } else {
+        runner->remove_stale_files(id);
+      }
+    }
+  }
+};
+
+Daemon::Daemon(DaemonConfig config) : impl_(std::make_unique<Impl>()) {
+  Impl& d = *impl_;
+  if (config.workers <= 0) config.workers = std::max(1u, std::thread::hardware_concurrency());
+  if (config.max_attempts < 1) throw std::invalid_argument("--max-attempts must be >= 1");
+  if (config.solver_threads < 1) throw std::invalid_argument("--solver-threads must be >= 1");
+  if (config.max_queued < 1) throw std::invalid_argument("--max-queued must be >= 1");
+  if (config.tls_cert.empty() != config.tls_key.empty()) {
+    throw std::invalid_argument("--tls-cert and --tls-key go together");
+  }
+  fs::create_directories(config.data_dir);
+  config.data_dir = fs::canonical(config.data_dir).string();
+  fs::create_directories(fs::path(config.data_dir) / "jobs");
+  fs::create_directories(fs::path(config.data_dir) / "meshes");
+  d.config = config;
+  d.lock_data_dir();
+
+  std::string token;
+  if (!config.token_file.empty()) token = read_token_file(config.token_file);
+  d.auth = std::make_unique<Authenticator>(token);
+
+  d.catalogue =
+      std::make_unique<Catalogue>((fs::path(config.data_dir) / "catalogue.sqlite").string());
+
+  RunnerConfig rc;
+  rc.data_dir = config.data_dir;
+  rc.limits.max_elements = config.max_elements;
+  rc.limits.max_end_time_s = config.max_end_time_s;
+  rc.solver_threads = config.solver_threads;
+  rc.max_wall_time_s = config.max_wall_time_s;
+  d.runner = std::make_unique<JobRunner>(rc, *d.catalogue, d.events);
+  d.recover();
+
+  d.scheduler = std::make_unique<Scheduler>(
+      Scheduler::Options{config.workers, config.max_queued},
+      [runner = d.runner.get()](const std::string& id, CancelToken& cancel) {
+        runner->run(id, cancel);
+      });
+  // Queued jobs in catalogue order; the bound does not apply to what was already accepted.
+  const auto queued = d.catalogue->queued_jobs();
+  for (const auto& q : queued) d.scheduler->enqueue(q.id, q.priority, q.seq, false);
+
+  ServiceConfig sc;
+  sc.limits = rc.limits;
+  sc.max_streams = config.max_streams;
+  d.service = std::make_unique<SimulationService>(sc, *d.catalogue, *d.scheduler, d.events,
+                                                  *d.runner, *d.auth);
+
+  std::ostringstream counts;
+  for (const auto& [state, n] : d.catalogue->counts())
+    counts << " " << to_string(state) << "=" << n;
+  log_info("softshockd ", SOFTSHOCK_VERSION, " data-dir=", config.data_dir,
+           " listen=", config.listen, " workers=", config.workers,
+           " max-queued=", config.max_queued, " solver-threads=", config.solver_threads,
+           " max-elements=", config.max_elements, " max-end-time=", config.max_end_time_s,
+           " max-wall-time=", config.max_wall_time_s, " max-attempts=", config.max_attempts,
+           " auth=", d.auth->enabled() ? "bearer-token" : "none",
+           " tls=", config.tls_cert.empty() ? "off" : "on",
+           " catalogue-schema=", d.catalogue->schema_version());
+  log_info("catalogue:", counts.str().empty() ? " empty" : counts.str(), "; ", queued.size(),
+           " job(s) queued");
+}
+
+Daemon::~Daemon() {
+  if (impl_ && !impl_->stopped) stop();
+}
+
+void Daemon::start() {
+  Impl& d = *impl_;
+  grpc::EnableDefaultHealthCheckService(true);
+  grpc::reflection::InitProtoReflectionServerBuilderPlugin();
+  std::shared_ptr<grpc::ServerCredentials> creds;
+  if (!d.config.tls_cert.empty()) {
+    grpc::SslServerCredentialsOptions ssl;
+    ssl.pem_key_cert_pairs.push_back(
+        {read_file(d.config.tls_key, "TLS key"), read_file(d.config.tls_cert, "TLS certificate")});
+    creds = grpc::SslServerCredentials(ssl);
+  } else {
+    creds = grpc::InsecureServerCredentials();
+  }
+  grpc::ServerBuilder builder;
+  // gRPC sets SO_REUSEPORT by default, which lets a second daemon bind the same port and
+  // silently share its traffic; a busy port must be an error instead.
+  builder.AddChannelArgument(GRPC_ARG_ALLOW_REUSEPORT, 0);
+  builder.AddListeningPort(d.config.listen, creds, &d.port);
+  builder.RegisterService(d.service.get());
+  builder.SetMaxReceiveMessageSize(d.config.max_receive_bytes);
+  d.server = builder.BuildAndStart();
+  if (!d.server || d.port == 0) {
+    throw std::runtime_error("cannot listen on " + d.config.listen);
+  }
+  d.scheduler->start();
+  if (!d.config.port_file.empty()) write_port_file(d.config.port_file, d.port);
+  log_info("listening on ", d.config.listen, " (port ", d.port, ")");
+}
+
+int Daemon::port() const {
+  return impl_->port;
+}
+
+bool Daemon::stop() {
+  Impl& d = *impl_;
+  if (d.stopped) return true;
+  d.stopped = true;
+  using namespace std::chrono;
+  log_info("stopping: no new calls; running jobs go back to the queue");
+  if (d.server) {
+    if (auto* health = d.server->GetHealthCheckService()) health->SetServingStatus(false);
+  }
+  d.events.shutdown();  // ends WatchJob streams and waits in CancelJob
+  if (d.server) {
+    d.server->Shutdown(system_clock::now() + duration_cast<system_clock::duration>(
+                                                 duration<double>(d.config.rpc_drain_s)));
+    d.server->Wait();
+  }
+  const auto stuck =
+      d.scheduler->shutdown(duration_cast<milliseconds>(duration<double>(d.config.job_stop_s)));
+  for (const auto& id : stuck) {
+    // Still inside an uninterruptible phase (e.g. meshing): record it as QUEUED ourselves; the
+    // worker's own later transition is conditional on RUNNING and becomes a no-op.
+    if (auto job = d.catalogue->get(id); job && job->state == JobState::kRunning) {
+      d.catalogue->requeue(id, job->attempt, reason::kShutdown, now_us());
+    }
+    log_warning("job ", id, " did not stop in time; recorded as QUEUED");
+  }
+  log_info("stopped");
+  return stuck.empty();
+}
+
+}  // namespace softshock::server

@@ -1,0 +1,54 @@
+// softshockd as an object: data folder, catalogue, start-up recovery, scheduler, job runner and
+// the gRPC server, started and stopped in the right order. main() parses flags and handles
+// signals; tests can run a Daemon in-process.
+#pragma once
+
+#include <cstddef>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace softshock::server {
+
+struct DaemonConfig {
+  std::string data_dir = "./data";
+  std::string listen = "127.0.0.1:50051";
+  std::string port_file;  // empty = none
+  int workers = 0;        // 0 = hardware threads
+  std::size_t max_queued = 1000;
+  std::string token_file;         // empty = no authentication
+  std::string tls_cert, tls_key;  // both or neither
+  int max_elements = 2'000'000;
+  double max_end_time_s = 1e-5;
+  double max_wall_time_s = 0;  // 0 = none
+  int solver_threads = 1;
+  int max_attempts = 3;
+  int max_streams = 64;
+  int max_receive_bytes = 4 << 20;
+  double rpc_drain_s = 2.0;  // shutdown: in-flight RPCs get this long
+  double job_stop_s = 6.0;   // shutdown: running jobs get this long to stop and requeue
+};
+
+class Daemon {
+ public:
+  // Prepares the data folder (exclusive lock, catalogue, recovery). Throws std::exception
+  // with a message fit for the user on any problem.
+  explicit Daemon(DaemonConfig config);
+  ~Daemon();
+  Daemon(const Daemon&) = delete;
+  Daemon& operator=(const Daemon&) = delete;
+
+  // Starts listening and the workers; writes the port file. Throws if it cannot listen.
+  void start();
+  int port() const;
+  // Orderly stop: stop accepting, end streams, requeue running jobs. Returns false if some
+  // job did not stop within job_stop_s (it was recorded as QUEUED anyway; the caller should
+  // exit the process promptly, without running destructors that wait for it).
+  bool stop();
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace softshock::server

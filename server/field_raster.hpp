@@ -1,0 +1,24 @@
+// Resampling of a field on the deformed triangle mesh onto a regular nx x ny raster covering
+// the deformed bounding box (GetField's raster mode). Element fields are piecewise constant,
+// node fields are interpolated barycentrically; cells whose centre lies in no triangle are NaN.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <vector>
+
+namespace softshock::server {
+
+struct RasterBox {
+  double x_min = 0, x_max = 0, y_min = 0, y_max = 0;
+};
+
+// x, y: deformed node coordinates; values: per node (node_field) or per element, with
+// `components` interleaved values each. Returns nx * ny * components values, row-major in j
+// (cell (i, j) at index (j * nx + i) * components + c); `box` receives the raster extent.
+std::vector<double> rasterize(const std::vector<double>& x, const std::vector<double>& y,
+                              const std::vector<std::array<int32_t, 3>>& triangles,
+                              const std::vector<double>& values, int components, bool node_field,
+                              int nx, int ny, RasterBox& box);
+
+}  // namespace softshock::server

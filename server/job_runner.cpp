@@ -1,0 +1,310 @@
+#include "server/job_runner.hpp"
+
+#include <google/protobuf/util/json_util.h>
+
+#include <algorithm>
+#include <cctype>
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <optional>
+
+#include "server/log.hpp"
+#include "solver/io/result_file.hpp"
+#include "solver/run_summary.hpp"
+#include "solver/simulation.hpp"
+
+namespace softshock::server {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+std::string lower(std::string s) {
+  std::transform(s.begin(), s.end(), s.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  return s;
+}
+
+// Seconds in messages: "8e-09 s", not std::to_string's "0.000000 s".
+std::string seconds(double s) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.6g s", s);
+  return buf;
+}
+
+JobProgressRecord to_record(const Progress& p) {
+  JobProgressRecord r;
+  r.fraction = std::clamp(p.fraction(), 0.0, 1.0);
+  r.simulated_time_s = p.time_s;
+  r.steps = p.steps;
+  r.dt_s = p.dt_s;
+  return r;
+}
+
+v1::RunSpec parse_stored_spec(const std::string& json) {
+  v1::RunSpec spec;
+  google::protobuf::util::JsonParseOptions options;
+  options.ignore_unknown_fields = true;  // a spec stored by a newer daemon still loads
+  const auto status = google::protobuf::util::JsonStringToMessage(json, &spec, options);
+  if (!status.ok()) throw SpecError("spec", "stored spec does not parse: " + status.ToString());
+  return spec;
+}
+
+}  // namespace
+
+void check_mesh_file(const v1::RunSpec& spec) {
+  if (spec.geometry().shape_case() != v1::Geometry::kMeshFile) return;
+  const fs::path p(spec.geometry().mesh_file());
+  if (p.empty() || p.is_absolute()) {
+    throw SpecError("geometry.mesh_file",
+                    "must be a relative path under the daemon's DATA/meshes/ folder");
+  }
+  for (const auto& part : p) {
+    if (part == "..") throw SpecError("geometry.mesh_file", "must not contain '..'");
+  }
+}
+
+std::string classify_failure(const std::string& solver_error) {
+  // Matches the messages of run_simulation (solver/simulation.cpp): "element inversion
+  // (J <= 0) ...", "non-finite state ...", "stable time step collapsed ...".
+  const std::string e = lower(solver_error);
+  auto has = [&](const char* word) { return e.find(word) != std::string::npos; };
+  if (has("inversion") || has("inverted")) return reason::kElementInversion;
+  if (has("non-finite") || has("not finite") || has("nan")) return reason::kNonFinite;
+  if (has("time step collapsed")) return reason::kTimeStepCollapse;
+  return reason::kInternal;
+}
+
+StoredSummary make_stored_summary(const RunSummary& summary, const History& history,
+                                  double interval_s, int max_modes) {
+  StoredSummary out;
+  out.summary = summary;
+  const std::size_t samples = std::min(history.time.size(), history.modes.size());
+  if (samples == 0) return out;
+  std::size_t columns = history.modes[0].size();
+  for (std::size_t k = 0; k < samples; ++k) columns = std::min(columns, history.modes[k].size());
+  out.mode_count = static_cast<int>(std::min<std::size_t>(columns, max_modes));
+  double next_time = -1e300;
+  for (std::size_t k = 0; k < samples; ++k) {
+    const bool last = k + 1 == samples;
+    // Half a history interval of slack keeps a sample that lands a rounding error early.
+    if (history.time[k] + 1e-15 < next_time && !last) continue;
+    out.mode_times.push_back(history.time[k]);
+    for (int m = 0; m < out.mode_count; ++m) out.mode_amplitudes.push_back(history.modes[k][m]);
+    next_time = history.time[k] + interval_s;
+  }
+  return out;
+}
+
+JobRunner::JobRunner(RunnerConfig config, Catalogue& catalogue, JobEvents& events)
+    : config_(std::move(config)), catalogue_(catalogue), events_(events) {}
+
+std::string JobRunner::job_dir(const std::string& id) const {
+  return (fs::path(config_.data_dir) / "jobs" / id).string();
+}
+
+std::string JobRunner::meshes_dir() const {
+  return (fs::path(config_.data_dir) / "meshes").string();
+}
+
+void JobRunner::remove_stale_files(const std::string& id) const {
+  std::error_code ec;
+  const fs::path dir = job_dir(id);
+  if (!fs::exists(dir, ec)) return;
+  for (const auto& entry : fs::directory_iterator(dir, ec)) {
+    const std::string name = entry.path().filename().string();
+    if (name.size() >= 4 && name.compare(name.size() - 4, 4, ".tmp") == 0) {
+      fs::remove(entry.path(), ec);
+    }
+  }
+}
+
+void JobRunner::run(const std::string& id, CancelToken& cancel) {
+  using Clock = std::chrono::steady_clock;
+  const auto started = Clock::now();
+  auto job = catalogue_.start(id, now_us());
+  if (!job) return;  // cancelled or deleted while queued: nothing to do
+  events_.set_progress(id, {});
+  log_info("job ", id, " started (attempt ", job->attempt, ")");
+
+  JobProgressRecord last_progress;
+  auto finish = [&](JobState state, const std::string& why, const std::string& error,
+                    const std::string& result_path, const StoredSummary* summary) {
+    const bool ok = catalogue_.finish(id, job->attempt, state, why, error, result_path,
+                                      last_progress, summary, now_us());
+    if (!ok) {
+      log_warning("job ", id, ": ", to_string(state), " not recorded (job changed meanwhile)");
+    } else if (state == JobState::kSucceeded) {
+      log_info("job ", id, " SUCCEEDED in ",
+               seconds(std::chrono::duration<double>(Clock::now() - started).count()));
+    } else {
+      log_info("job ", id, " ", to_string(state), " ", why, ": ", error);
+    }
+    events_.forget(id);  // wakes watchers; no live progress once it stops
+  };
+  auto requeue = [&](const std::string& why) {
+    if (catalogue_.requeue(id, job->attempt, why, now_us())) {
+      log_info("job ", id, " requeued (", why, ")");
+    }
+    events_.forget(id);  // wakes watchers; no live progress once it stops
+  };
+
+  // Setup: spec, mesh, writer. Spec problems here mean the limits changed since submission or
+  // the mesh file is unusable: the job fails, it is not retried.
+  v1::RunSpec spec;
+  Problem problem;
+  SolverOptions options;
+  try {
+    spec = normalize_spec(parse_stored_spec(job->spec_json), config_.limits);
+    v1::RunSpec meshing_spec = spec;
+    if (spec.geometry().shape_case() == v1::Geometry::kMeshFile) {
+      check_mesh_file(spec);
+      meshing_spec.mutable_geometry()->set_mesh_file(
+          (fs::path(meshes_dir()) / spec.geometry().mesh_file()).string());
+    }
+    problem = make_problem(meshing_spec, config_.limits);
+    options = make_options(spec);
+    options.threads = std::max(1, config_.solver_threads);
+  } catch (const SpecError& e) {
+    finish(JobState::kFailed, reason::kInvalidSpec, e.what(), "", nullptr);
+    return;
+  } catch (const std::exception& e) {
+    finish(JobState::kFailed, reason::kInternal, std::string("setup: ") + e.what(), "", nullptr);
+    return;
+  }
+  // Meshing cannot be interrupted; a stop requested meanwhile takes effect here.
+  if (cancel.requested()) {
+    switch (cancel.reason()) {
+      case StopReason::kShutdown:
+        requeue(reason::kShutdown);
+        return;
+      case StopReason::kWallTime:
+        finish(JobState::kFailed, reason::kWallTimeLimit,
+               "wall time limit of " + seconds(config_.max_wall_time_s) + " reached while meshing",
+               "", nullptr);
+        return;
+      default:
+        finish(JobState::kCancelled, reason::kCancelledByUser, "cancelled by user while meshing",
+               "", nullptr);
+        return;
+    }
+  }
+
+  const std::string dir = job_dir(id);
+  std::unique_ptr<ResultWriter> writer;
+  try {
+    std::error_code ec;
+    fs::create_directories(dir, ec);
+    if (ec) throw std::runtime_error("cannot create " + dir + ": " + ec.message());
+    // A previous attempt's files (interrupted, or a partial result) are superseded.
+    for (const char* name : {"result.h5", "result.xdmf"}) fs::remove(fs::path(dir) / name, ec);
+    remove_stale_files(id);
+    writer =
+        std::make_unique<ResultWriter>(dir, problem.mesh, spec_to_json(spec), SOFTSHOCK_VERSION);
+  } catch (const std::exception& e) {
+    finish(JobState::kFailed, reason::kInternal, std::string("result file: ") + e.what(), "",
+           nullptr);
+    return;
+  }
+
+  // Run. Callbacks come from the solver thread between steps: keep them cheap.
+  std::string io_error;
+  const auto progress_every = std::chrono::duration<double>(config_.progress_interval_s);
+  auto next_publish = Clock::now();
+  RunControl control;
+  control.cancel = cancel.flag();
+  control.on_progress = [&](const Progress& p) {
+    last_progress = to_record(p);
+    const auto now = Clock::now();
+    if (now < next_publish) return;
+    next_publish = now + std::chrono::duration_cast<Clock::duration>(progress_every);
+    events_.set_progress(id, last_progress);
+    if (config_.max_wall_time_s > 0 &&
+        std::chrono::duration<double>(now - started).count() > config_.max_wall_time_s) {
+      cancel.request(StopReason::kWallTime);
+    }
+  };
+  control.on_frame = [&](const FieldFrame& frame) {
+    if (!io_error.empty()) return;
+    try {
+      writer->write_frame(frame);
+    } catch (const std::exception& e) {
+      io_error = e.what();
+      cancel.request(StopReason::kInternal);
+    }
+  };
+
+  RunResult result;
+  try {
+    result = run_simulation(problem, options, control);
+  } catch (const std::exception& e) {
+    finish(JobState::kFailed, reason::kInternal, std::string("solver: ") + e.what(), "", nullptr);
+    return;  // the writer's destructor removes the temporary file
+  }
+
+  if (result.status == RunStatus::kCancelled && cancel.reason() == StopReason::kShutdown) {
+    // Not the job's fault: discard the partial file (writer destructor) and queue it again so
+    // the next daemon start completes it.
+    writer.reset();
+    requeue(reason::kShutdown);
+    return;
+  }
+
+  // Decide the outcome, then make the file durable before recording it.
+  JobState state = JobState::kSucceeded;
+  std::string why, error;
+  switch (result.status) {
+    case RunStatus::kCompleted:
+      break;
+    case RunStatus::kFailed:
+      state = JobState::kFailed;
+      why = classify_failure(result.error);
+      error = result.error;
+      break;
+    case RunStatus::kCancelled:
+      switch (cancel.reason()) {
+        case StopReason::kWallTime:
+          state = JobState::kFailed;
+          why = reason::kWallTimeLimit;
+          error = "wall time limit of " + seconds(config_.max_wall_time_s) +
+                  " reached at simulated time " + seconds(last_progress.simulated_time_s);
+          break;
+        case StopReason::kInternal:
+          state = JobState::kFailed;
+          why = reason::kInternal;
+          error = "writing a field frame: " + io_error;
+          break;
+        default:
+          state = JobState::kCancelled;
+          why = reason::kCancelledByUser;
+          error = "cancelled by user at simulated time " + seconds(last_progress.simulated_time_s);
+          break;
+      }
+      break;
+  }
+  if (state == JobState::kSucceeded) last_progress.fraction = 1.0;
+
+  std::optional<StoredSummary> stored;
+  try {
+    const RunSummary summary = summarize(problem, result);
+    stored = make_stored_summary(summary, result.history);
+    if (state != JobState::kFailed || why != reason::kInternal) {
+      writer->finish(result.history, summary, state == JobState::kSucceeded, error);
+    }
+  } catch (const std::exception& e) {
+    // Without a durable file the run cannot count as a success.
+    finish(JobState::kFailed, reason::kInternal, std::string("finishing results: ") + e.what(), "",
+           nullptr);
+    return;
+  }
+  const std::string path = fs::exists(writer->h5_path()) ? writer->h5_path() : std::string();
+  finish(state, why, error, path, stored ? &*stored : nullptr);
+  if (!catalogue_.get(id)) {
+    // Deleted while it ran: do not leave an orphan folder behind.
+    std::error_code ec;
+    fs::remove_all(dir, ec);
+  }
+}
+
+}  // namespace softshock::server

@@ -1,0 +1,89 @@
+// softshock.v1.SimulationService over the catalogue, scheduler and result files (API and
+// errors: docs/api.md). Handlers are synchronous; the long ones (WatchJob, GetField) hold a
+// slot of a bounded pool of concurrent streams and honour ServerContext::IsCancelled().
+#pragma once
+
+#include <atomic>
+#include <mutex>
+#include <random>
+#include <string>
+
+#include "server/auth.hpp"
+#include "server/catalogue.hpp"
+#include "server/job_events.hpp"
+#include "server/job_runner.hpp"
+#include "server/scheduler.hpp"
+#include "softshock/v1/service.grpc.pb.h"
+#include "solver/run_spec.hpp"
+
+namespace softshock::server {
+
+struct ServiceConfig {
+  SpecLimits limits;
+  int max_streams = 64;               // concurrent WatchJob + GetField streams
+  double watch_min_interval_s = 0.2;  // at most ~5 WatchJob updates per second
+  double cancel_wait_s = 5.0;         // CancelJob/DeleteJob wait this long for a running job
+};
+
+class SimulationService final : public v1::SimulationService::Service {
+ public:
+  SimulationService(ServiceConfig config, Catalogue& catalogue, Scheduler& scheduler,
+                    JobEvents& events, const JobRunner& runner, const Authenticator& auth);
+
+  grpc::Status SubmitJob(grpc::ServerContext* ctx, const v1::SubmitJobRequest* req,
+                         v1::Job* resp) override;
+  grpc::Status GetJob(grpc::ServerContext* ctx, const v1::GetJobRequest* req,
+                      v1::Job* resp) override;
+  grpc::Status ListJobs(grpc::ServerContext* ctx, const v1::ListJobsRequest* req,
+                        v1::ListJobsResponse* resp) override;
+  grpc::Status WatchJob(grpc::ServerContext* ctx, const v1::WatchJobRequest* req,
+                        grpc::ServerWriter<v1::Job>* writer) override;
+  grpc::Status CancelJob(grpc::ServerContext* ctx, const v1::CancelJobRequest* req,
+                         v1::Job* resp) override;
+  grpc::Status DeleteJob(grpc::ServerContext* ctx, const v1::DeleteJobRequest* req,
+                         v1::DeleteJobResponse* resp) override;
+  grpc::Status GetJobSummary(grpc::ServerContext* ctx, const v1::GetJobSummaryRequest* req,
+                             v1::JobSummary* resp) override;
+  grpc::Status GetTimeSeries(grpc::ServerContext* ctx, const v1::GetTimeSeriesRequest* req,
+                             v1::TimeSeries* resp) override;
+  grpc::Status GetModes(grpc::ServerContext* ctx, const v1::GetModesRequest* req,
+                        v1::Modes* resp) override;
+  grpc::Status GetField(grpc::ServerContext* ctx, const v1::GetFieldRequest* req,
+                        grpc::ServerWriter<v1::FieldChunk>* writer) override;
+
+  int active_streams() const { return active_streams_.load(); }
+
+ private:
+  friend class StreamSlot;
+  grpc::Status submit(grpc::ServerContext* ctx, const v1::SubmitJobRequest& req, v1::Job* resp);
+  grpc::Status list(const v1::ListJobsRequest& req, v1::ListJobsResponse* resp);
+  grpc::Status watch(grpc::ServerContext* ctx, const std::string& id,
+                     grpc::ServerWriter<v1::Job>* writer);
+  grpc::Status cancel(const std::string& id, v1::Job* resp);
+  grpc::Status erase(const std::string& id);
+  grpc::Status summary(const std::string& id, v1::JobSummary* resp);
+  grpc::Status time_series(const v1::GetTimeSeriesRequest& req, v1::TimeSeries* resp);
+  grpc::Status modes(const v1::GetModesRequest& req, v1::Modes* resp);
+  grpc::Status field(grpc::ServerContext* ctx, const v1::GetFieldRequest& req,
+                     grpc::ServerWriter<v1::FieldChunk>* writer);
+
+  // Job state with the live progress of a running job overlaid.
+  void fill_job(const JobRecord& record, v1::Job* job) const;
+  // Waits until the job is terminal (or gone) or the wait runs out; returns the last record.
+  std::optional<JobRecord> wait_terminal(const std::string& id, double seconds) const;
+  // The result file of a job whose results can be queried, or a FAILED_PRECONDITION.
+  grpc::Status result_file(const std::string& id, std::string* path) const;
+  std::string new_job_id();
+
+  ServiceConfig config_;
+  Catalogue& catalogue_;
+  Scheduler& scheduler_;
+  JobEvents& events_;
+  const JobRunner& runner_;
+  const Authenticator& auth_;
+  std::atomic<int> active_streams_{0};
+  std::mutex id_mutex_;
+  std::mt19937_64 id_random_;
+};
+
+}  // namespace softshock::server
