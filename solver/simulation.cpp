@@ -72,6 +72,10 @@ struct Schedule {
   double next_output_time() const { return output > 0 ? next_output * output : end; }
 };
 
+FailureKind failure_kind(const KernelTotals& k) {
+  return std::isfinite(k.bad_j) ? FailureKind::kElementInversion : FailureKind::kNonFinite;
+}
+
 std::string describe_failure(const KernelTotals& k, double t, int64_t steps) {
   char buf[256];
   std::snprintf(buf, sizeof buf, "%s in element %lld at t = %.6g ns (step %lld): J = %.6g",
@@ -198,6 +202,7 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
   KernelTotals totals = evaluate(0.0, 0.0);
   if (totals.bad_element >= 0) {
     result.status = RunStatus::kFailed;
+    result.failure = failure_kind(totals);
     result.error = describe_failure(totals, 0.0, 0);
     return result;
   }
@@ -243,6 +248,7 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
     ++steps;
     if (totals.bad_element >= 0) {
       result.status = RunStatus::kFailed;
+      result.failure = failure_kind(totals);
       result.error = describe_failure(totals, t, steps);
       break;
     }
@@ -265,6 +271,7 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
     result.max_dt_s = std::max(result.max_dt_s, dt_stable);
     if (!(dt_stable > options.end_time_s * 1e-12)) {
       result.status = RunStatus::kFailed;
+      result.failure = FailureKind::kTimeStepCollapse;
       char buf[160];
       std::snprintf(buf, sizeof buf,
                     "stable time step collapsed to %.3g s at t = %.6g ns (step %lld)", dt_stable,
@@ -278,6 +285,7 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
       diagnostics.sample(view, elements, t, dt_stable, dissipated, external_work, result.history);
       if (!std::isfinite(result.history.kinetic_energy.back())) {
         result.status = RunStatus::kFailed;
+        result.failure = FailureKind::kNonFinite;
         result.error = "non-finite kinetic energy at t = " + std::to_string(t * 1e9) + " ns";
         break;
       }

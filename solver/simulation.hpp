@@ -56,9 +56,13 @@ struct Progress {
 
 enum class RunStatus { kCompleted, kCancelled, kFailed };
 
+// Why a kFailed run stopped, for callers that act on the cause (the daemon's job reasons).
+enum class FailureKind { kNone, kElementInversion, kNonFinite, kTimeStepCollapse };
+
 struct RunResult {
   RunStatus status = RunStatus::kCompleted;
   std::string error;  // for kFailed: time, element and cause
+  FailureKind failure = FailureKind::kNone;
   History history;
   int64_t steps = 0;
   double wall_time_s = 0;

@@ -259,6 +259,7 @@ TEST(PhysicsValidation, InvertingRunFailsWithTimeElementAndCause) {
   o.output_interval_s = 0;
   const RunResult r = run_simulation(p, o);
   EXPECT_EQ(r.status, RunStatus::kFailed);
+  EXPECT_EQ(r.failure, FailureKind::kElementInversion);
   EXPECT_NE(r.error.find("element inversion"), std::string::npos) << r.error;
   EXPECT_NE(r.error.find("in element"), std::string::npos) << r.error;
   EXPECT_NE(r.error.find("ns"), std::string::npos) << r.error;
