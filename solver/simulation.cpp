@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstdio>
 #include <stdexcept>
+#include <utility>
 
 #include "diagnostics.hpp"
 #include "element_kernels.hpp"
@@ -153,36 +154,57 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
   params.c2 = problem.viscosity.c2;
   params.viscosity = problem.viscosity.enabled;
 
-  // Internal + external forces at the current positions -> accelerations. Each thread owns a
-  // fixed range of elements and then of nodes; partial totals are combined in thread order, so
-  // results depend only on the thread count.
+  // One step's node and element work: the predictor moves the nodes by dt (dt = 0: evaluate at
+  // the current state), then internal + external forces give the new accelerations and the
+  // corrector completes the velocities. Each thread owns a fixed range of nodes and of
+  // elements; partial totals are combined in thread order, so results depend only on the
+  // thread count (the trajectory not even on that: forces are gathered in a fixed order).
   std::vector<KernelTotals> partial(threads);
   auto evaluate = [&](double t, double dt) {
     params.dt = dt;
-    apply_follower_pressure(t);
+    auto node_range = [&](int tid) {
+      return std::pair<std::size_t, std::size_t>{nn * tid / threads, nn * (tid + 1) / threads};
+    };
+    auto predict = [&](int tid) {  // x+ = x + dt v + dt^2/2 a; v* = v + dt/2 a
+      const auto [n0, n1] = node_range(tid);
+      for (std::size_t i = n0; i < n1; ++i) {
+        x[i] += dt * vx[i] + 0.5 * dt * dt * ax[i];
+        y[i] += dt * vy[i] + 0.5 * dt * dt * ay[i];
+        vx[i] += 0.5 * dt * ax[i];
+        vy[i] += 0.5 * dt * ay[i];
+      }
+    };
     auto work = [&](int tid) {
       const std::size_t e0 = ne * tid / threads, e1 = ne * (tid + 1) / threads;
       partial[tid] = KernelTotals{};
       compute_element_forces(geometry, x.data(), y.data(), params, e0, e1, elements, partial[tid]);
     };
-    auto gather = [&](int tid) {
-      const std::size_t n0 = nn * tid / threads, n1 = nn * (tid + 1) / threads;
+    auto gather_and_correct = [&](int tid) {  // a+ = M^-1 f; v+ = v* + dt/2 a+
+      const auto [n0, n1] = node_range(tid);
       gather_nodal_forces(adjacency, elements, n0, n1, fx.data(), fy.data());
       for (std::size_t i = n0; i < n1; ++i) {
         ax[i] = free_x[i] * (fx[i] + fext_x[i]) / mass[i];
         ay[i] = free_y[i] * (fy[i] + fext_y[i]) / mass[i];
+        vx[i] += 0.5 * dt * ax[i];
+        vy[i] += 0.5 * dt * ay[i];
       }
     };
     if (threads == 1) {
+      predict(0);
+      apply_follower_pressure(t);
       work(0);
-      gather(0);
+      gather_and_correct(0);
     } else {
 #pragma omp parallel num_threads(threads)
       {
         const int tid = omp_get_thread_num();
+        predict(tid);
+#pragma omp barrier
+#pragma omp single
+        apply_follower_pressure(t);  // boundary only; the single's barrier follows
         work(tid);
 #pragma omp barrier
-        gather(tid);
+        gather_and_correct(tid);
       }
     }
     KernelTotals total;
@@ -232,16 +254,11 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
     if (t < pulse_end - tiny) stop = std::min(stop, pulse_end);
     const double dt = (stop - t <= dt_stable + tiny) ? stop - t : dt_stable;
 
-    // Predictor: x+ = x + dt v + dt^2/2 a; v* = v + dt/2 a.
+    // Predictor, forces and corrector (evaluate); the loaded nodes' state before the step is
+    // kept for the external work.
     for (std::size_t k = 0; k < loaded_nodes.size(); ++k) {
       const int32_t i = loaded_nodes[k];
       x_old[k] = x[i], y_old[k] = y[i], fext_old_x[k] = fext_x[i], fext_old_y[k] = fext_y[i];
-    }
-    for (std::size_t i = 0; i < nn; ++i) {
-      x[i] += dt * vx[i] + 0.5 * dt * dt * ax[i];
-      y[i] += dt * vy[i] + 0.5 * dt * dt * ay[i];
-      vx[i] += 0.5 * dt * ax[i];
-      vy[i] += 0.5 * dt * ay[i];
     }
     t = (stop - t <= dt_stable + tiny) ? stop : t + dt;
     totals = evaluate(t, dt);
@@ -251,11 +268,6 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
       result.failure = failure_kind(totals);
       result.error = describe_failure(totals, t, steps);
       break;
-    }
-    // Corrector: v+ = v* + dt/2 a+.
-    for (std::size_t i = 0; i < nn; ++i) {
-      vx[i] += 0.5 * dt * ax[i];
-      vy[i] += 0.5 * dt * ay[i];
     }
     // Work booked as the integrator sees it: forces times displacement increments,
     // trapezoidal in time.
