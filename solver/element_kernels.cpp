@@ -19,8 +19,6 @@ void ElementState::resize(std::size_t elements) {
   for (auto* v : {&f_xx, &f_xy, &f_yx, &f_yy, &log_j, &pv_xx, &pv_xy, &pv_yx, &pv_yy}) {
     v->assign(elements, 0.0);
   }
-  force_x.assign(3 * elements, 0.0);
-  force_y.assign(3 * elements, 0.0);
   reset_to_reference();
 }
 
@@ -35,9 +33,9 @@ void ElementState::reset_to_reference() {
 // Compiled for AVX2 and for the baseline ISA; the loader picks one at start-up.
 __attribute__((target_clones("avx2", "default"))) void compute_element_forces(
     const ElementGeometry& g, const double* x, const double* y, const KernelParams& p,
-    std::size_t begin, std::size_t end, ElementState& s, KernelTotals& totals) {
+    std::size_t begin, std::size_t end, ElementState& s, KernelTotals& totals, double* node_fx,
+    double* node_fy) {
   namespace cm = continuum;
-  const std::size_t ne = g.size();
   const double n = p.tait_n;
   const bool lagged = p.viscosity && p.dt > 0;
   const double viscosity_on = lagged ? 1.0 : 0.0;
@@ -52,7 +50,6 @@ __attribute__((target_clones("avx2", "default"))) void compute_element_forces(
   double *fxx = s.f_xx.data(), *fxy = s.f_xy.data(), *fyx = s.f_yx.data(), *fyy = s.f_yy.data();
   double* log_j_prev = s.log_j.data();
   double *pxx = s.pv_xx.data(), *pxy = s.pv_xy.data(), *pyx = s.pv_yx.data(), *pyy = s.pv_yy.data();
-  double *force_x = s.force_x.data(), *force_y = s.force_y.data();
 
   // Edge vectors are gathered per block into small contiguous buffers (indexed loads do not
   // vectorise well); the element loop then streams plain arrays. The loop body is branch-free
@@ -62,6 +59,8 @@ __attribute__((target_clones("avx2", "default"))) void compute_element_forces(
   alignas(64) double edge1x[kBlock], edge1y[kBlock], edge2x[kBlock], edge2y[kBlock];
   // Per-element results reduced after the (reduction-free, hence vectorisable) loop.
   alignas(64) double step_sq_out[kBlock], dissipation_out[kBlock], j_out[kBlock];
+  // Corner forces of the block, scattered to the nodes after the vectorised loop.
+  alignas(64) double f1x_out[kBlock], f1y_out[kBlock], f2x_out[kBlock], f2y_out[kBlock];
   double min_step_sq = totals.min_step_sq, dissipation = 0.0;
   bool all_valid = true;
   for (std::size_t block = begin; block < end; block += kBlock) {
@@ -119,14 +118,17 @@ __attribute__((target_clones("avx2", "default"))) void compute_element_forces(
       const double f1y = -a0 * (p10 * dm_inv[0] + p11 * dm_inv[1]);
       const double f2x = -a0 * (p00 * dm_inv[2] + p01 * dm_inv[3]);
       const double f2y = -a0 * (p10 * dm_inv[2] + p11 * dm_inv[3]);
-      force_x[e] = -(f1x + f2x), force_y[e] = -(f1y + f2y);
-      force_x[ne + e] = f1x, force_y[ne + e] = f1y;
-      force_x[2 * ne + e] = f2x, force_y[2 * ne + e] = f2y;
+      f1x_out[k] = f1x, f1y_out[k] = f1y, f2x_out[k] = f2x, f2y_out[k] = f2y;
     }
     for (std::size_t k = 0; k < count; ++k) {
       min_step_sq = step_sq_out[k] < min_step_sq ? step_sq_out[k] : min_step_sq;
       dissipation += dissipation_out[k];
       all_valid &= j_out[k] > 0.0;  // false for J <= 0 and for NaN
+      const std::size_t e = block + k;
+      node_fx[node0[e]] -= f1x_out[k] + f2x_out[k];
+      node_fy[node0[e]] -= f1y_out[k] + f2y_out[k];
+      node_fx[node1[e]] += f1x_out[k], node_fy[node1[e]] += f1y_out[k];
+      node_fx[node2[e]] += f2x_out[k], node_fy[node2[e]] += f2y_out[k];
     }
   }
 
@@ -142,36 +144,6 @@ __attribute__((target_clones("avx2", "default"))) void compute_element_forces(
         break;
       }
     }
-  }
-}
-
-NodeCorners build_node_corners(const ElementGeometry& g, std::size_t nodes) {
-  const std::size_t ne = g.size();
-  NodeCorners adj;
-  adj.offset.assign(nodes + 1, 0);
-  const std::vector<int32_t>* corners[3] = {&g.node0, &g.node1, &g.node2};
-  for (int k = 0; k < 3; ++k)
-    for (std::size_t e = 0; e < ne; ++e) ++adj.offset[(*corners[k])[e] + 1];
-  for (std::size_t i = 0; i < nodes; ++i) adj.offset[i + 1] += adj.offset[i];
-  adj.corner.resize(3 * ne);
-  std::vector<int64_t> fill(adj.offset.begin(), adj.offset.end() - 1);
-  for (int k = 0; k < 3; ++k)
-    for (std::size_t e = 0; e < ne; ++e)
-      adj.corner[fill[(*corners[k])[e]]++] = static_cast<int32_t>(k * ne + e);
-  return adj;
-}
-
-void gather_nodal_forces(const NodeCorners& adj, const ElementState& s, std::size_t begin,
-                         std::size_t end, double* fx, double* fy) {
-  const double* cx = s.force_x.data();
-  const double* cy = s.force_y.data();
-  for (std::size_t i = begin; i < end; ++i) {
-    double sx = 0.0, sy = 0.0;
-    for (int64_t k = adj.offset[i]; k < adj.offset[i + 1]; ++k) {
-      sx += cx[adj.corner[k]];
-      sy += cy[adj.corner[k]];
-    }
-    fx[i] = sx, fy[i] = sy;
   }
 }
 

@@ -22,8 +22,6 @@ struct ElementState {
   std::vector<double> f_xx, f_xy, f_yx, f_yy;      // F at the last evaluation (lags the viscosity)
   std::vector<double> log_j;                       // ln J at the last evaluation
   std::vector<double> pv_xx, pv_xy, pv_yx, pv_yy;  // viscous P at the last evaluation
-  // Nodal forces (acting on the nodes, = -f_int) of corners 0, 1, 2: corner-major, size 3E.
-  std::vector<double> force_x, force_y;
   void resize(std::size_t elements);
   void reset_to_reference();  // F = I, ln J = 0, P_v = 0
 };
@@ -42,20 +40,12 @@ struct KernelTotals {
   double bad_j = 0;
 };
 
-// Evaluates elements [begin, end): updates state and the nodal force contributions.
+// Evaluates elements [begin, end): updates their state and adds their nodal forces (acting on
+// the nodes, = -f_int) to node_fx / node_fy, element by element in index order — so the sums
+// are deterministic for a given element range.
 void compute_element_forces(const ElementGeometry& geometry, const double* x, const double* y,
                             const KernelParams& params, std::size_t begin, std::size_t end,
-                            ElementState& state, KernelTotals& totals);
-
-// Node -> (element corner) adjacency for the deterministic gather of nodal forces.
-struct NodeCorners {
-  std::vector<int64_t> offset;  // size N + 1
-  std::vector<int32_t> corner;  // index into ElementState::force_x/force_y (corner * E + e)
-};
-NodeCorners build_node_corners(const ElementGeometry& geometry, std::size_t nodes);
-
-// force[n] = sum of corner forces of node n, for nodes [begin, end); fixed summation order.
-void gather_nodal_forces(const NodeCorners& adjacency, const ElementState& state, std::size_t begin,
-                         std::size_t end, double* fx, double* fy);
+                            ElementState& state, KernelTotals& totals, double* node_fx,
+                            double* node_fy);
 
 }  // namespace softshock

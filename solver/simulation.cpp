@@ -98,7 +98,6 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
   const int threads = options.threads;
 
   const ElementGeometry geometry = build_geometry(mesh);
-  const NodeCorners adjacency = build_node_corners(geometry, nn);
   ElementState elements;
   elements.resize(ne);
   const Diagnostics diagnostics(problem, geometry, options.modes);
@@ -157,9 +156,13 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
   // One step's node and element work: the predictor moves the nodes by dt (dt = 0: evaluate at
   // the current state), then internal + external forces give the new accelerations and the
   // corrector completes the velocities. Each thread owns a fixed range of nodes and of
-  // elements; partial totals are combined in thread order, so results depend only on the
-  // thread count (the trajectory not even on that: forces are gathered in a fixed order).
+  // elements and adds its elements' forces into its own nodal arrays; those and the partial
+  // totals are summed in thread order, so results depend only on the thread count.
   std::vector<KernelTotals> partial(threads);
+  std::vector<std::vector<double>> thread_fx(threads > 1 ? threads : 0),
+      thread_fy(threads > 1 ? threads : 0);
+  for (auto* v : {&thread_fx, &thread_fy})
+    for (auto& f : *v) f.resize(nn);
   auto evaluate = [&](double t, double dt) {
     params.dt = dt;
     auto node_range = [&](int tid) {
@@ -176,12 +179,23 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
     };
     auto work = [&](int tid) {
       const std::size_t e0 = ne * tid / threads, e1 = ne * (tid + 1) / threads;
+      double* out_x = threads > 1 ? thread_fx[tid].data() : fx.data();
+      double* out_y = threads > 1 ? thread_fy[tid].data() : fy.data();
+      std::fill(out_x, out_x + nn, 0.0);
+      std::fill(out_y, out_y + nn, 0.0);
       partial[tid] = KernelTotals{};
-      compute_element_forces(geometry, x.data(), y.data(), params, e0, e1, elements, partial[tid]);
+      compute_element_forces(geometry, x.data(), y.data(), params, e0, e1, elements, partial[tid],
+                             out_x, out_y);
     };
-    auto gather_and_correct = [&](int tid) {  // a+ = M^-1 f; v+ = v* + dt/2 a+
+    auto correct = [&](int tid) {  // a+ = M^-1 f; v+ = v* + dt/2 a+
       const auto [n0, n1] = node_range(tid);
-      gather_nodal_forces(adjacency, elements, n0, n1, fx.data(), fy.data());
+      if (threads > 1) {
+        for (std::size_t i = n0; i < n1; ++i) {
+          double sx = 0.0, sy = 0.0;
+          for (int k = 0; k < threads; ++k) sx += thread_fx[k][i], sy += thread_fy[k][i];
+          fx[i] = sx, fy[i] = sy;
+        }
+      }
       for (std::size_t i = n0; i < n1; ++i) {
         ax[i] = free_x[i] * (fx[i] + fext_x[i]) / mass[i];
         ay[i] = free_y[i] * (fy[i] + fext_y[i]) / mass[i];
@@ -193,7 +207,7 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
       predict(0);
       apply_follower_pressure(t);
       work(0);
-      gather_and_correct(0);
+      correct(0);
     } else {
 #pragma omp parallel num_threads(threads)
       {
@@ -204,7 +218,7 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
         apply_follower_pressure(t);  // boundary only; the single's barrier follows
         work(tid);
 #pragma omp barrier
-        gather_and_correct(tid);
+        correct(tid);
       }
     }
     KernelTotals total;

@@ -1,6 +1,7 @@
 // Patch test and frame indifference of the element kernel (physics.md section 9).
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <numbers>
 
@@ -15,7 +16,6 @@ struct KernelFixture {
   Mesh mesh = make_rectangle_mesh(4e-6, 3e-6, 8, 6);
   ElementGeometry g;
   ElementState s;
-  NodeCorners adj;
   KernelParams p{2e9, 7.15, 5e3, 1000.0, 1.0, 0.1, true, 0.0};
 
   KernelFixture() {
@@ -33,7 +33,6 @@ struct KernelFixture {
       g.dm_inv_yy[e] = a / det, g.area0[e] = 0.5 * det;
     }
     s.resize(ne);
-    adj = build_node_corners(g, mesh.node_count());
   }
   // Deformed positions x = F X.
   void deform(const continuum::Mat2& f, std::vector<double>& x, std::vector<double>& y) const {
@@ -67,10 +66,10 @@ TEST(ElementKernel, PatchTestUniformDeformationGivesNoInteriorForceAndExactStres
   std::vector<double> x, y;
   fx.deform(f, x, y);
   KernelTotals totals;
-  compute_element_forces(fx.g, x.data(), y.data(), fx.p, 0, fx.g.size(), fx.s, totals);
-  ASSERT_LT(totals.bad_element, 0);
   std::vector<double> nfx(fx.mesh.node_count()), nfy(fx.mesh.node_count());
-  gather_nodal_forces(fx.adj, fx.s, 0, fx.mesh.node_count(), nfx.data(), nfy.data());
+  compute_element_forces(fx.g, x.data(), y.data(), fx.p, 0, fx.g.size(), fx.s, totals, nfx.data(),
+                         nfy.data());
+  ASSERT_LT(totals.bad_element, 0);
 
   // Scale of an element's nodal force: |P| * edge length (per metre of thickness).
   const double j = continuum::det(f);
@@ -97,11 +96,16 @@ TEST(ElementKernel, PatchTestUniformDeformationGivesNoInteriorForceAndExactStres
         (stored_energy(fp, 2e9, 7.15, 3e8) - stored_energy(fm, 2e9, 7.15, 3e8)) / 2e-6;
     EXPECT_NEAR(piola[k], dw, 1e-6 * frobenius(piola)) << k;
   }
-  // Every element carries the same stress: its nodal forces equal -A0 P grad N.
+  // Every element carries the same stress: its nodal forces equal -A0 P grad N (evaluated one
+  // element at a time).
   for (std::size_t e = 0; e < fx.g.size(); ++e) {
+    std::vector<double> ex(fx.mesh.node_count(), 0.0), ey(fx.mesh.node_count(), 0.0);
+    KernelTotals one;
+    compute_element_forces(fx.g, x.data(), y.data(), fx.p, e, e + 1, fx.s, one, ex.data(),
+                           ey.data());
     const double f1x =
         -fx.g.area0[e] * (piola[0] * fx.g.dm_inv_xx[e] + piola[1] * fx.g.dm_inv_xy[e]);
-    EXPECT_NEAR(fx.s.force_x[fx.g.size() + e], f1x, 1e-9 * scale);
+    EXPECT_NEAR(ex[fx.g.node1[e]], f1x, 1e-9 * scale);
   }
 }
 
@@ -118,10 +122,12 @@ TEST(ElementKernel, RigidRotationProducesNoElasticOrViscousStress) {
     fx.deform({std::cos(th), -std::sin(th), std::sin(th), std::cos(th)}, x, y);
     fx.p.dt = dt;
     KernelTotals totals;
-    compute_element_forces(fx.g, x.data(), y.data(), fx.p, 0, fx.g.size(), fx.s, totals);
+    std::vector<double> nfx(fx.mesh.node_count(), 0.0), nfy(fx.mesh.node_count(), 0.0);
+    compute_element_forces(fx.g, x.data(), y.data(), fx.p, 0, fx.g.size(), fx.s, totals, nfx.data(),
+                           nfy.data());
     ASSERT_LT(totals.bad_element, 0);
-    for (std::size_t c = 0; c < fx.s.force_x.size(); ++c)
-      max_force = std::max(max_force, std::hypot(fx.s.force_x[c], fx.s.force_y[c]));
+    for (std::size_t i = 0; i < nfx.size(); ++i)
+      max_force = std::max(max_force, std::hypot(nfx[i], nfy[i]));
   }
   // Elastic stress vanishes exactly for F = R. Round-off in J (~1e-16) switches the viscosity
   // on now and then, and the lagged rate of a rotation by dtheta per step is symmetric only to
@@ -129,10 +135,16 @@ TEST(ElementKernel, RigidRotationProducesNoElasticOrViscousStress) {
   // largest possible nu = 3/4 h rho0 c2 c (c1 term ~ 1e-16) and |grad N| A0 <= edge length:
   const double dtheta = std::numbers::pi / 3 / steps, h = 0.5e-6, edge = 0.5e-6 * std::sqrt(2.0);
   const double nu = 0.75 * h * 1000.0 * 0.1 * std::sqrt(2e9 / 1000.0);
-  const double bound = 2.0 * nu * (1.0 - std::cos(dtheta)) / (3.0 * dt) * edge * 2.0;
-  // ... about 1e-2 N/m, while a 1 % volumetric strain gives kappa * 0.01 * edge ~ 1e1 N/m.
+  // ... per element corner, times the largest number of elements meeting at a node.
+  std::vector<int> valence(fx.mesh.node_count(), 0);
+  for (const auto& t : fx.mesh.triangles)
+    for (int32_t i : t) ++valence[i];
+  const int max_valence = *std::max_element(valence.begin(), valence.end());
+  const double bound = 2.0 * nu * (1.0 - std::cos(dtheta)) / (3.0 * dt) * edge * 2.0 * max_valence;
+  // ... about 5e-2 N/m at a node, while a 1 % volumetric strain gives kappa * 0.01 * edge
+  // ~ 1e1 N/m per element: the bound stays below 1 % of a real 1 % strain.
   EXPECT_LT(max_force, bound);
-  EXPECT_LT(bound, 1e-3 * 2e9 * 0.01 * edge);
+  EXPECT_LT(bound, 1e-2 * 2e9 * 0.01 * edge);
 }
 
 TEST(ElementKernel, InvertedElementIsReported) {
@@ -141,7 +153,9 @@ TEST(ElementKernel, InvertedElementIsReported) {
   const int32_t victim = fx.g.node1[7];
   x[victim] = -1e-5;  // pull one node through the opposite edge
   KernelTotals totals;
-  compute_element_forces(fx.g, x.data(), y.data(), fx.p, 0, fx.g.size(), fx.s, totals);
+  std::vector<double> nfx(x.size(), 0.0), nfy(x.size(), 0.0);
+  compute_element_forces(fx.g, x.data(), y.data(), fx.p, 0, fx.g.size(), fx.s, totals, nfx.data(),
+                         nfy.data());
   EXPECT_GE(totals.bad_element, 0);
   EXPECT_LE(totals.bad_j, 0.0);
 }

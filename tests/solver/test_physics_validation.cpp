@@ -230,9 +230,10 @@ TEST(PhysicsValidation, BaselineEventTimesMatchTheThesis) {
               static_cast<long long>(r.steps));
 }
 
-// Determinism: the element forces and their gather do not depend on the thread count, so the
-// trajectory is identical for 1 and 2 threads (only the dissipation sum is reassociated).
-TEST(PhysicsValidation, ResultsAreDeterministicAcrossRunsAndThreadCounts) {
+// Determinism: for a given thread count the run is bit-for-bit repeatable (fixed element ranges,
+// per-thread force arrays summed in thread order); across thread counts only the summation order
+// of the nodal forces differs, so results agree to round-off.
+TEST(PhysicsValidation, ResultsAreDeterministicForAGivenThreadCount) {
   const auto spec1 = spec_from(R"({"geometry":{"target_elements":1500},
       "run":{"end_time":3e-8,"output_interval":0,"threads":1}})");
   auto spec2 = spec1;
@@ -241,9 +242,15 @@ TEST(PhysicsValidation, ResultsAreDeterministicAcrossRunsAndThreadCounts) {
                   d = run_spec(spec2);
   EXPECT_EQ(a.history.abar, b.history.abar);
   EXPECT_EQ(a.history.kinetic_energy, b.history.kinetic_energy);
+  EXPECT_EQ(c.history.abar, d.history.abar);
+  EXPECT_EQ(c.history.kinetic_energy, d.history.kinetic_energy);
   EXPECT_EQ(c.history.dissipated_energy, d.history.dissipated_energy);
-  EXPECT_EQ(a.history.abar, c.history.abar);
-  EXPECT_EQ(a.history.kinetic_energy, c.history.kinetic_energy);
+  // 1 vs 2 threads: reassociated sums (~1e-16 relative per step) grow through ~200 steps of a
+  // shock; 1e-9 relative on the energies is far above that and far below any physical change.
+  ASSERT_EQ(a.history.size(), c.history.size());
+  for (std::size_t k = 0; k < a.history.size(); ++k)
+    EXPECT_NEAR(a.history.kinetic_energy[k], c.history.kinetic_energy[k],
+                1e-9 * a.history.kinetic_energy.back());
 }
 
 // (g) An inverting run stops cleanly with time, element and cause.
