@@ -3,6 +3,8 @@
 // CliError.
 #pragma once
 
+#include <algorithm>
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -37,6 +39,32 @@ int cmd_health(const GlobalOptions& g, const ParsedArgs& a);
 int cmd_modes(const GlobalOptions& g, const ParsedArgs& a);
 int cmd_series(const GlobalOptions& g, const ParsedArgs& a);
 int cmd_field(const GlobalOptions& g, const ParsedArgs& a);
+
+// Grids and the result database (commands_grids.cpp).
+int cmd_grid(const GlobalOptions& g, const ParsedArgs& a);
+int cmd_query(const GlobalOptions& g, const ParsedArgs& a);
+
+// Follows next_page_token until `limit` items (0 = all), asking for at most 1000 per page.
+// `call(ctx, request, page)` runs the RPC; `items(response)` returns its mutable repeated field.
+template <typename Request, typename Response, typename Call, typename Items>
+Response collect_pages(Connection& conn, Request request, int64_t limit, Call call, Items items) {
+  Response all;
+  auto count = [&] { return static_cast<int64_t>(items(all)->size()); };
+  for (;;) {
+    request.set_page_size(
+        static_cast<int32_t>(limit == 0 ? 1000 : std::min<int64_t>(1000, limit - count())));
+    Response page;
+    conn.unary([&](grpc::ClientContext& ctx) { return call(ctx, request, page); });
+    for (auto& item : *items(page)) {
+      if (limit != 0 && count() >= limit) break;
+      *items(all)->Add() = std::move(item);
+    }
+    all.set_next_page_token(page.next_page_token());
+    if (page.next_page_token().empty() || (limit != 0 && count() >= limit)) break;
+    request.set_page_token(page.next_page_token());
+  }
+  return all;
+}
 
 // Follows a job until it reaches a terminal state, reconnecting when the daemon restarts;
 // returns the final job. Shared by `watch` and `submit --wait`.

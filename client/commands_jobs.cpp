@@ -228,21 +228,12 @@ int cmd_list(const GlobalOptions& g, const ParsedArgs& a) {
   if (limit < 0) usage_error("--limit: must be >= 0 (0 = no limit)");
 
   Connection conn(g);
-  v1::ListJobsResponse all;
-  for (;;) {
-    int64_t want = limit == 0 ? 1000 : std::min<int64_t>(1000, limit - all.jobs_size());
-    request.set_page_size(static_cast<int32_t>(want));
-    v1::ListJobsResponse page;
-    conn.unary(
-        [&](grpc::ClientContext& ctx) { return conn.service().ListJobs(&ctx, request, &page); });
-    for (auto& job : *page.mutable_jobs()) {
-      if (limit != 0 && all.jobs_size() >= limit) break;
-      *all.add_jobs() = std::move(job);
-    }
-    all.set_next_page_token(page.next_page_token());
-    if (page.next_page_token().empty() || (limit != 0 && all.jobs_size() >= limit)) break;
-    request.set_page_token(page.next_page_token());
-  }
+  const auto all = collect_pages<v1::ListJobsRequest, v1::ListJobsResponse>(
+      conn, request, limit,
+      [&](grpc::ClientContext& ctx, const v1::ListJobsRequest& r, v1::ListJobsResponse& page) {
+        return conn.service().ListJobs(&ctx, r, &page);
+      },
+      [](v1::ListJobsResponse& r) { return r.mutable_jobs(); });
   if (g.json) {
     std::printf("%s\n", to_json(all).c_str());
     return kExitOk;

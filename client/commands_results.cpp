@@ -17,27 +17,11 @@
 
 #include "client/commands.hpp"
 #include "client/format.hpp"
-
-#ifndef SOFTSHOCK_PYTHON_EXE
-#define SOFTSHOCK_PYTHON_EXE "/usr/bin/python3"
-#endif
-#ifndef SOFTSHOCK_CLIENT_PYTHON_DIR
-#define SOFTSHOCK_CLIENT_PYTHON_DIR ""
-#endif
-
-extern char** environ;
+#include "client/plot_helper.hpp"
 
 namespace softshock::cli {
 
 namespace {
-
-// Shortest text that reads back as the same double: CSV output loses nothing.
-std::string exact(double v) {
-  if (std::isnan(v)) return "nan";
-  char buf[32];
-  auto [end, ec] = std::to_chars(buf, buf + sizeof buf, v);
-  return ec == std::errc() ? std::string(buf, end) : fmt_num(v, 17);
-}
 
 int32_t parse_nonneg_int32(const std::string& option, const std::string& text) {
   int64_t v = parse_int(option, text);
@@ -52,6 +36,63 @@ int32_t parse_every(const ParsedArgs& a) {
     return k;
   }
   return 0;
+}
+
+// A JSON array of doubles; NaN as Python's json module writes it.
+std::string json_array(const google::protobuf::RepeatedField<double>& values) {
+  std::string out = "[";
+  for (double v : values) {
+    if (out.size() > 1) out += ',';
+    out += std::isfinite(v) ? fmt_exact(v) : "NaN";
+  }
+  return out + "]";
+}
+
+// R0/c0 of a finished job (its summary), to plot against t-bar; 0 when it has no summary.
+double time_scale(Connection& conn, const std::string& id) {
+  v1::GetJobSummaryRequest request;
+  request.set_id(id);
+  v1::JobSummary summary;
+  try {
+    conn.unary([&](grpc::ClientContext& ctx) {
+      return conn.service().GetJobSummary(&ctx, request, &summary);
+    });
+  } catch (const CliError&) {
+    return 0.0;
+  }
+  return summary.groups().time_scale();
+}
+
+// A-bar(t) of every job given, in one PNG (against t-bar when they share R0/c0).
+int series_png(const GlobalOptions& g, const ParsedArgs& a, const std::string& png) {
+  if (a.has("csv") || a.has("name")) usage_error("--png plots A-bar(t): no --csv or --name");
+  Connection conn(g);
+  std::string series_json;
+  double common_scale = -1;
+  for (const auto& id : a.positional) {
+    v1::GetTimeSeriesRequest request;
+    request.set_id(id);
+    request.set_every(parse_every(a));
+    request.add_names("abar");
+    v1::TimeSeries ts;
+    conn.unary(
+        [&](grpc::ClientContext& ctx) { return conn.service().GetTimeSeries(&ctx, request, &ts); });
+    if (ts.series_size() != 1 || ts.series(0).values_size() != ts.time_size()) {
+      throw CliError(kExitFailure, "job " + id + ": no A-bar series");
+    }
+    const double scale = time_scale(conn, id);
+    common_scale = common_scale < 0 || common_scale == scale ? scale : 0.0;
+    series_json += (series_json.empty() ? "" : ",") + std::string("{\"label\":\"") + id +
+                   "\",\"time\":" + json_array(ts.time()) +
+                   ",\"abar\":" + json_array(ts.series(0).values()) + "}";
+  }
+  TempDir tmp;
+  const std::string json = tmp.path() + "/abar.json";
+  write_text_file(json, "{\"series\":[" + series_json +
+                            "],\"time_scale\":" + fmt_exact(std::max(0.0, common_scale)) + "}");
+  run_python_plot({"abar", "--json=" + json, "--out=" + png});
+  std::printf("wrote: %s\n", png.c_str());
+  return kExitOk;
 }
 
 }  // namespace
@@ -76,6 +117,20 @@ int cmd_modes(const GlobalOptions& g, const ParsedArgs& a) {
                                      " amplitudes for " + std::to_string(rows) + " x " +
                                      std::to_string(cols) + " (inconsistent reply)");
   }
+  if (auto png = a.get("png")) {
+    if (rows == 0 || cols == 0) throw CliError(kExitFailure, "the job stored no mode amplitudes");
+    TempDir tmp;
+    write_npy(tmp.path() + "/time.npy", {modes.time().begin(), modes.time().end()}, {rows});
+    write_npy(tmp.path() + "/amplitude.npy", {modes.amplitude().begin(), modes.amplitude().end()},
+              {rows, cols});
+    run_python_plot({"modes", "--time-npy=" + tmp.path() + "/time.npy",
+                     "--amplitude-npy=" + tmp.path() + "/amplitude.npy",
+                     "--mode-min=" + std::to_string(modes.mode_min()),
+                     "--time-scale=" + fmt_exact(time_scale(conn, request.id())),
+                     "--title=Rim Fourier modes, job " + request.id(), "--out=" + *png});
+    std::printf("wrote: %s\n", png->c_str());
+    return kExitOk;
+  }
   if (g.json) {
     std::printf("%s\n", to_json(modes).c_str());
     return kExitOk;
@@ -85,9 +140,9 @@ int cmd_modes(const GlobalOptions& g, const ParsedArgs& a) {
     for (std::size_t c = 0; c < cols; ++c) line += ",mode_" + std::to_string(modes.mode_min() + c);
     std::printf("%s\n", line.c_str());
     for (std::size_t r = 0; r < rows; ++r) {
-      line = exact(modes.time(static_cast<int>(r)));
+      line = fmt_exact(modes.time(static_cast<int>(r)));
       for (std::size_t c = 0; c < cols; ++c) {
-        line.append(",").append(exact(modes.amplitude(static_cast<int>(r * cols + c))));
+        line.append(",").append(fmt_exact(modes.amplitude(static_cast<int>(r * cols + c))));
       }
       std::printf("%s\n", line.c_str());
     }
@@ -110,6 +165,8 @@ int cmd_modes(const GlobalOptions& g, const ParsedArgs& a) {
 }
 
 int cmd_series(const GlobalOptions& g, const ParsedArgs& a) {
+  if (auto png = a.get("png")) return series_png(g, a, *png);
+  if (a.positional.size() > 1) usage_error("several IDs need --png (A-bar(t) of each in one plot)");
   v1::GetTimeSeriesRequest request;
   request.set_id(a.positional.at(0));
   request.set_every(parse_every(a));
@@ -134,8 +191,8 @@ int cmd_series(const GlobalOptions& g, const ParsedArgs& a) {
     for (const auto& s : ts.series()) line += "," + csv_escape(s.name());
     std::printf("%s\n", line.c_str());
     for (int r = 0; r < ts.time_size(); ++r) {
-      line = exact(ts.time(r));
-      for (const auto& s : ts.series()) line.append(",").append(exact(s.values(r)));
+      line = fmt_exact(ts.time(r));
+      for (const auto& s : ts.series()) line.append(",").append(fmt_exact(s.values(r)));
       std::printf("%s\n", line.c_str());
     }
     return kExitOk;
@@ -223,82 +280,6 @@ FieldData fetch_field(Connection& conn, const v1::GetFieldRequest& request) {
   }
 }
 
-std::string self_exe_dir() {
-  std::error_code ec;
-  auto p = std::filesystem::read_symlink("/proc/self/exe", ec);
-  return ec ? std::string() : p.parent_path().string();
-}
-
-// Where the softshock_client package is: $SOFTSHOCK_PYTHONPATH, the installed copy next to
-// the binary (PREFIX/share/softshock/python), else the source tree this binary was built from.
-std::string client_python_path() {
-  if (const char* env = std::getenv("SOFTSHOCK_PYTHONPATH"); env && *env) return env;
-  std::string installed = self_exe_dir() + "/../share/softshock/python";
-  if (std::filesystem::exists(installed + "/softshock_client/plots.py")) return installed;
-  return SOFTSHOCK_CLIENT_PYTHON_DIR;
-}
-
-// Runs the plotting helper (matplotlib lives in Python; an image encoder here would be a
-// second, worse copy of it). Its stderr passes through so a missing package is visible.
-void run_python_plot(const std::vector<std::string>& args) {
-  const char* py_env = std::getenv("SOFTSHOCK_PYTHON");
-  std::string python = py_env && *py_env ? py_env : SOFTSHOCK_PYTHON_EXE;
-  std::string path = client_python_path();
-  if (const char* old = std::getenv("PYTHONPATH"); old && *old) path += std::string(":") + old;
-  std::vector<std::string> env_strings = {"PYTHONPATH=" + path, "MPLBACKEND=Agg"};
-  for (char** e = environ; *e; ++e) {
-    if (std::strncmp(*e, "PYTHONPATH=", 11) != 0 && std::strncmp(*e, "MPLBACKEND=", 11) != 0) {
-      env_strings.emplace_back(*e);
-    }
-  }
-  std::vector<std::string> argv_strings = {python, "-m", "softshock_client.plots"};
-  argv_strings.insert(argv_strings.end(), args.begin(), args.end());
-  std::vector<char*> argv, envp;
-  for (auto& s : argv_strings) argv.push_back(s.data());
-  argv.push_back(nullptr);
-  for (auto& s : env_strings) envp.push_back(s.data());
-  envp.push_back(nullptr);
-  std::fflush(stdout);
-  // The plot helper must not write to our stdout: JSON/scripted output stays clean.
-  posix_spawn_file_actions_t actions;
-  posix_spawn_file_actions_init(&actions);
-  posix_spawn_file_actions_adddup2(&actions, STDERR_FILENO, STDOUT_FILENO);
-  pid_t pid = 0;
-  int rc = posix_spawn(&pid, python.c_str(), &actions, nullptr, argv.data(), envp.data());
-  posix_spawn_file_actions_destroy(&actions);
-  if (rc != 0) {
-    throw CliError(kExitFailure, "cannot run " + python + " for the PNG: " + std::strerror(rc));
-  }
-  int wstatus = 0;
-  while (waitpid(pid, &wstatus, 0) < 0 && errno == EINTR) {
-  }
-  if (!WIFEXITED(wstatus) || WEXITSTATUS(wstatus) != 0) {
-    throw CliError(kExitFailure, "the plotting helper (" + python +
-                                     " -m softshock_client.plots) failed; PYTHONPATH=" + path);
-  }
-}
-
-class TempDir {
- public:
-  TempDir() {
-    const char* base = std::getenv("TMPDIR");
-    std::string tmpl = std::string(base && *base ? base : "/tmp") + "/softshock-XXXXXX";
-    if (mkdtemp(tmpl.data()) == nullptr) {
-      throw CliError(kExitFailure,
-                     "cannot make a temporary directory: " + std::string(std::strerror(errno)));
-    }
-    path_ = tmpl;
-  }
-  ~TempDir() {
-    std::error_code ec;
-    std::filesystem::remove_all(path_, ec);
-  }
-  const std::string& path() const { return path_; }
-
- private:
-  std::string path_;
-};
-
 void write_field_csv(const std::string& path, const FieldData& f) {
   std::ofstream file;
   std::ostream* out = &std::cout;
@@ -318,8 +299,9 @@ void write_field_csv(const std::string& path, const FieldData& f) {
     for (int j = 0; j < h.ny(); ++j) {
       for (int i = 0; i < h.nx(); ++i) {
         std::size_t cell = static_cast<std::size_t>(j) * h.nx() + i;
-        *out << exact(h.x_min() + (i + 0.5) * dx) << ',' << exact(h.y_min() + (j + 0.5) * dy);
-        for (int c = 0; c < comps; ++c) *out << ',' << exact(f.values[cell * comps + c]);
+        *out << fmt_exact(h.x_min() + (i + 0.5) * dx) << ','
+             << fmt_exact(h.y_min() + (j + 0.5) * dy);
+        for (int c = 0; c < comps; ++c) *out << ',' << fmt_exact(f.values[cell * comps + c]);
         *out << '\n';
       }
     }
@@ -329,7 +311,7 @@ void write_field_csv(const std::string& path, const FieldData& f) {
     const std::size_t every = static_cast<std::size_t>(std::max(1, h.every()));
     for (std::size_t k = 0; k * comps < f.values.size(); ++k) {
       *out << k * every;
-      for (int c = 0; c < comps; ++c) *out << ',' << exact(f.values[k * comps + c]);
+      for (int c = 0; c < comps; ++c) *out << ',' << fmt_exact(f.values[k * comps + c]);
       *out << '\n';
     }
   }
@@ -438,11 +420,11 @@ int cmd_field(const GlobalOptions& g, const ParsedArgs& a) {
     write_npy(npy, field.values, shape);
     // "--opt=value" throughout: a negative number as a separate word would look like an option
     // to argparse, and so would a name or path starting with '-'.
-    run_python_plot({"field-raster", "--npy=" + npy, "--x-min=" + exact(h.x_min()),
-                     "--x-max=" + exact(h.x_max()), "--y-min=" + exact(h.y_min()),
-                     "--y-max=" + exact(h.y_max()), "--name=" + h.name(), "--units=" + h.units(),
-                     "--time=" + exact(h.time()), "--frame=" + std::to_string(h.frame()),
-                     "--out=" + *png});
+    run_python_plot({"field-raster", "--npy=" + npy, "--x-min=" + fmt_exact(h.x_min()),
+                     "--x-max=" + fmt_exact(h.x_max()), "--y-min=" + fmt_exact(h.y_min()),
+                     "--y-max=" + fmt_exact(h.y_max()), "--name=" + h.name(),
+                     "--units=" + h.units(), "--time=" + fmt_exact(h.time()),
+                     "--frame=" + std::to_string(h.frame()), "--out=" + *png});
     written.push_back(*png);
   }
   if (csv && *csv == "-") return kExitOk;  // stdout carries the CSV: nothing else may go there

@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <bit>
 #include <cerrno>
+#include <charconv>
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
@@ -22,6 +23,13 @@ std::string fmt_num(double value, int significant) {
   char buf[64];
   std::snprintf(buf, sizeof buf, "%.*g", significant, value);
   return buf;
+}
+
+std::string fmt_exact(double v) {
+  if (std::isnan(v)) return "nan";
+  char buf[32];
+  auto [end, ec] = std::to_chars(buf, buf + sizeof buf, v);
+  return ec == std::errc() ? std::string(buf, end) : fmt_num(v, 17);
 }
 
 std::string fmt_ns(double seconds) {

@@ -17,6 +17,8 @@ namespace softshock::cli {
 
 // Six significant digits, no trailing noise ("1.5e-08", "0.25", "16500").
 std::string fmt_num(double value, int significant = 6);
+// Shortest text that reads back as the same double ("nan" for NaN): CSV output loses nothing.
+std::string fmt_exact(double value);
 // Seconds shown as nanoseconds, the natural unit of these runs: "361.6 ns".
 std::string fmt_ns(double seconds);
 // Wall-clock durations: "4.2 s", "3 min 07 s", "2 h 05 min".

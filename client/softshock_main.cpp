@@ -50,18 +50,18 @@ const std::vector<Command>& commands() {
        1,
        cmd_summary},
       {"modes",
-       "ID [--csv] [--every K] [--mode-min A --mode-max B]",
-       "Fourier mode amplitudes of the rim over time",
-       {{"csv", false}, {"every", true}, {"mode-min", true}, {"mode-max", true}},
+       "ID [--csv] [--every K] [--mode-min A --mode-max B] [--png FILE]",
+       "Fourier mode amplitudes of the rim over time; --png: heat map over mode number x t-bar",
+       {{"csv", false}, {"every", true}, {"mode-min", true}, {"mode-max", true}, {"png", true}},
        1,
        1,
        cmd_modes},
       {"series",
-       "ID [--csv] [--every K] [--name N]...",
-       "time series (A-bar, energies, ...)",
-       {{"csv", false}, {"every", true}, {"name", true}},
+       "ID [ID]... [--csv] [--every K] [--name N]... [--png FILE]",
+       "time series (A-bar, energies, ...); --png: A-bar(t) of one or several jobs",
+       {{"csv", false}, {"every", true}, {"name", true}, {"png", true}},
        1,
-       1,
+       64,
        cmd_series},
       {"field",
        "ID --name J|mean_stress|hoop_stress|radial_stress|von_mises|displacement|velocity\n"
@@ -78,6 +78,45 @@ const std::vector<Command>& commands() {
        1,
        1,
        cmd_field},
+      {"grid",
+       "submit GRID.json [--wait] [--label k=v]... [--priority N] [--request-id ID] "
+       "[--recompute]\n"
+       "                 | status ID | wait ID | list | cancel ID\n"
+       "                 | reduce ID [--quantity Q] [--tbar T] [--csv] [--png FILE]",
+       "parameter grids: submit (a base spec x 1-3 axes), follow, cancel, reduce to a table,\n"
+       "           CSV or heat map (quantities: max_abar_first_cycle, max_abar, abar_at --tbar T,\n"
+       "           dominant_mode_end, energy_injected, energy_after_pulse, shock_at_center, "
+       "wall_time)",
+       {{"wait", false},
+        {"label", true},
+        {"priority", true},
+        {"request-id", true},
+        {"recompute", false},
+        {"quantity", true},
+        {"tbar", true},
+        {"csv", false},
+        {"png", true}},
+       1,
+       2,
+       cmd_grid},
+      {"query",
+       "[--where 'NAME OP VALUE']... [--state S] [--grid ID] [--order-by 'NAME [desc]'] "
+       "[--limit N] [--csv]",
+       "catalogued jobs whose groups / summary figures pass filters, e.g. --where 'pbar=0.5..1.5'\n"
+       "           --where 'gamma>6' --where 'max_abar_first_cycle>0.01' (names: pbar, "
+       "tbar_pulse,\n"
+       "           mubar, gamma, c1, c2, max_abar_first_cycle, max_abar, energy_injected,\n"
+       "           energy_after_pulse, dominant_mode_end, shock_at_center, wall_time, elements, "
+       "steps)",
+       {{"where", true},
+        {"state", true},
+        {"grid", true},
+        {"order-by", true},
+        {"limit", true},
+        {"csv", false}},
+       0,
+       0,
+       cmd_query},
       {"health",
        "[--service NAME]",
        "grpc.health.v1 check (exit 0 when SERVING)",

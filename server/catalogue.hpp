@@ -1,11 +1,12 @@
 // The job catalogue: one SQLite file (DATA/catalogue.sqlite) holding jobs, their labels, attempt
-// history and run summaries. It is the single source of truth for job state: every transition
-// is a conditional UPDATE inside BEGIN IMMEDIATE on the one writer connection, so a worker
-// that lost a race (job cancelled, deleted, or requeued by shutdown) simply sees "false".
+// history, run summaries and parameter grids. It is the single source of truth for job state: every
+// transition is a conditional UPDATE inside BEGIN IMMEDIATE on the one writer connection, so a
+// worker that lost a race (job cancelled, deleted, or requeued by shutdown) simply sees "false".
 // WAL mode; synchronous=FULL so an acknowledged submission or terminal state survives power
 // loss. WAL needs a local filesystem (not NFS/SMB).
 #pragma once
 
+#include <cmath>
 #include <cstdint>
 #include <map>
 #include <memory>
@@ -68,23 +69,105 @@ struct JobRecord {
   std::string error, reason;
   int attempt = 1;  // 1 for the first run; +1 per restart after an interrupted run
   std::string result_path;
+  std::string grid_id;  // empty = not a grid point
+  int grid_index = 0;
+  std::string reused_from;  // the SUCCEEDED job whose result this one reuses; empty = ran itself
+  bool reuse_result = false;
 };
+
+// The nondimensional groups of a job as catalogued (indexed columns; NaN = not known yet, e.g.
+// t-bar_pulse of a mesh_file job before it has been meshed).
+NondimensionalGroups unknown_groups();
 
 struct NewJob {
   std::string id, spec_json, spec_hash, request_id;
   std::map<std::string, std::string> labels;
   int priority = 0;
   int64_t create_us = 0;
+  NondimensionalGroups groups = unknown_groups();
+  std::string grid_id;  // empty = a lone job
+  int grid_index = 0;
+  bool reuse_result = false;  // may reuse an identical SUCCEEDED run (at start)
+  // Inserted already SUCCEEDED, reusing this job's result (its summary is copied); result_path
+  // must then name the linked result file.
+  std::string reused_from;
+  std::string result_path;
 };
 
 // The catalogued figures of a finished run: the solver's summary plus the mode amplitudes
-// decimated to ~4 ns (row-major mode_times.size() x mode_count, modes 0..mode_count-1).
+// decimated to ~4 ns (row-major mode_times.size() x mode_count, modes 0..mode_count-1) and
+// A-bar(t) decimated to at most ~1000 samples (so grid reductions never open result files).
 struct StoredSummary {
   RunSummary summary;
   std::vector<double> mode_times;
   int mode_count = 0;
   std::vector<double> mode_amplitudes;
+  std::vector<double> abar_times, abar_values;
 };
+
+// A parameter grid. `definition` is the service's own encoding of the base spec and axes (the
+// catalogue stores it opaquely); the points are ordinary jobs carrying grid_id and grid_index.
+struct GridRecord {
+  int64_t seq = 0;
+  std::string id;
+  std::string request_id;
+  int64_t create_us = 0;
+  int point_count = 0;
+  bool cancelled = false;
+  std::string definition;
+};
+
+struct NewGrid {
+  std::string id, request_id, definition;
+  int64_t create_us = 0;
+};
+
+struct GridCounts {
+  std::map<JobState, int> by_state;
+  int reused = 0;
+  std::vector<std::string> running;  // ids of the running points (for live progress)
+};
+
+struct GridCancellation {
+  std::vector<std::string> cancelled;  // were QUEUED, now CANCELLED
+  std::vector<std::string> running;    // still RUNNING: to be stopped
+};
+
+// One point of a grid with its catalogued summary, if it has one.
+struct GridPoint {
+  int index = 0;
+  std::string job_id;
+  JobState state = JobState::kQueued;
+  std::optional<StoredSummary> summary;  // mode data left out
+};
+
+// A numeric condition of a query: lower/upper bounds (NaN = none) on a named column.
+struct RangeCondition {
+  std::string name;  // one of query_column_names()
+  double gt = NAN, ge = NAN, lt = NAN, le = NAN;
+};
+
+struct JobQuery {
+  std::vector<RangeCondition> conditions;
+  std::optional<JobState> state;
+  std::string grid_id;     // empty = any
+  std::string order_by;    // a query column; empty = newest first
+  bool descending = true;  // for order_by
+  // Keyset cursor: rows after (after_key, after_seq) in the sort order; after_seq 0 = first page.
+  double after_key = 0;
+  int64_t after_seq = 0;
+  int limit = 50;
+};
+
+struct QueryRow {
+  JobRecord job;
+  NondimensionalGroups groups;
+  std::optional<RunSummary> summary;
+  double sort_key = 0;  // the cursor value of this row
+};
+
+// Names QueryJobs accepts: the groups, then the summary figures.
+const std::vector<std::string>& query_column_names();
 
 struct AttemptRecord {
   int attempt = 0;
@@ -106,6 +189,12 @@ struct QueuedJob {
   std::string id;
   int priority = 0;
   int64_t seq = 0;
+};
+
+// A job handed to Slurm that has not finished (slurm executor).
+struct SubmittedJob {
+  std::string id, slurm_job_id;
+  JobState state = JobState::kQueued;
 };
 
 struct RecoveryReport {
@@ -141,6 +230,33 @@ class Catalogue {
   std::optional<StoredSummary> summary(const std::string& id) const;
   // Counts per state (for the start-up log).
   std::map<JobState, int64_t> counts() const;
+  // The first SUCCEEDED job with this spec hash that ran itself and has a result file, other
+  // than `except_id`: what an identical run may reuse.
+  std::optional<JobRecord> find_reusable(const std::string& spec_hash,
+                                         const std::string& except_id = "") const;
+  // Jobs matching every condition, in the requested order, one page.
+  std::vector<QueryRow> query(const JobQuery& query) const;
+
+  // --- grids
+  // Inserts the grid and all its points in one durable transaction (points with reused_from
+  // go in SUCCEEDED, the rest QUEUED). With a request_id already known, returns that grid
+  // instead (created = false) and inserts nothing.
+  struct GridInsertResult {
+    GridRecord grid;
+    bool created = false;
+    std::vector<int64_t> point_seqs;  // the points' seq (FIFO key), in the order given
+  };
+  GridInsertResult insert_grid(const NewGrid& grid, const std::vector<NewJob>& points);
+  std::optional<GridRecord> get_grid(const std::string& id) const;
+  std::optional<GridRecord> find_grid_by_request_id(const std::string& request_id) const;
+  // Newest first; before_seq 0 = from the newest.
+  std::vector<GridRecord> list_grids(int64_t before_seq, int limit) const;
+  GridCounts grid_counts(const std::string& grid_id) const;
+  // Every point in index order, with summaries (A-bar samples included, modes left out).
+  std::vector<GridPoint> grid_points(const std::string& grid_id) const;
+  // Marks the grid cancelled and cancels its QUEUED points at once. The caller drops those from
+  // the scheduler's queue and stops the RUNNING ones through it.
+  GridCancellation cancel_grid(const std::string& grid_id, int64_t now_us);
 
   // --- transitions (each one transaction; false when the job is not in the expected state)
   // QUEUED -> RUNNING; returns the job as started.
@@ -152,11 +268,25 @@ class Catalogue {
   // RUNNING (this attempt) -> QUEUED, same attempt: an orderly shutdown interrupted the run,
   // which is not the job's fault.
   bool requeue(const std::string& id, int attempt, const std::string& reason, int64_t now_us);
+  // QUEUED -> SUCCEEDED without running: the job reuses the result of `source` (linked into
+  // its own folder as result_path) and gets a copy of its summary.
+  bool complete_reused(const std::string& id, const std::string& source,
+                       const std::string& result_path, int64_t now_us);
   // QUEUED -> CANCELLED.
   bool cancel_queued(const std::string& id, int64_t now_us);
   // Removes the job, its labels, attempts and summary.
   bool erase(const std::string& id);
-  // At start-up: every RUNNING job was interrupted by a crash. Requeue it with attempt + 1
+  // --- the slurm executor
+  // Records the Slurm job ids of QUEUED jobs that are not submitted yet, all in one durable
+  // transaction (a whole array job at once); returns how many were recorded.
+  int mark_submitted(const std::vector<std::pair<std::string, std::string>>& ids);
+  // QUEUED and RUNNING jobs that have a Slurm job id, in seq order (re-attached at start-up).
+  std::vector<SubmittedJob> submitted_jobs() const;
+  // The job's Slurm job id; empty when not submitted or unknown.
+  std::string slurm_job_id(const std::string& id) const;
+
+  // At start-up: every RUNNING job was interrupted by a crash (except one with a Slurm job
+  // id, which ran on and is re-attached instead). Requeue it with attempt + 1
   // (INTERRUPTED in the attempt history), or fail it with MAX_ATTEMPTS beyond max_attempts.
   RecoveryReport recover(int max_attempts, int64_t now_us);
 

@@ -15,11 +15,13 @@
 
 #include "server/auth.hpp"
 #include "server/catalogue.hpp"
+#include "server/daemon_config.hpp"
 #include "server/job_events.hpp"
 #include "server/job_runner.hpp"
 #include "server/log.hpp"
 #include "server/scheduler.hpp"
 #include "server/simulation_service.hpp"
+#include "server/slurm_executor.hpp"
 
 namespace softshock::server {
 
@@ -55,7 +57,7 @@ struct Daemon::Impl {
   JobEvents events;
   std::unique_ptr<JobRunner> runner;
   std::unique_ptr<Authenticator> auth;
-  std::unique_ptr<Scheduler> scheduler;
+  std::unique_ptr<Executor> scheduler;  // local or slurm
   std::unique_ptr<SimulationService> service;
   std::unique_ptr<grpc::Server> server;
   int port = 0;
@@ -107,6 +109,8 @@ Daemon::Daemon(DaemonConfig config) : impl_(std::make_unique<Impl>()) {
   if (config.tls_cert.empty() != config.tls_key.empty()) {
     throw std::invalid_argument("--tls-cert and --tls-key go together");
   }
+  // Also here, not only in the loader: an embedding program must not expose an open daemon.
+  if (auto problem = exposure_problem(config)) throw std::invalid_argument(*problem);
   fs::create_directories(config.data_dir);
   config.data_dir = fs::canonical(config.data_dir).string();
   fs::create_directories(fs::path(config.data_dir) / "jobs");
@@ -130,14 +134,42 @@ Daemon::Daemon(DaemonConfig config) : impl_(std::make_unique<Impl>()) {
   d.runner = std::make_unique<JobRunner>(rc, *d.catalogue, d.events);
   d.recover();
 
-  d.scheduler = std::make_unique<Scheduler>(
-      Scheduler::Options{config.workers, config.max_queued},
-      [runner = d.runner.get()](const std::string& id, CancelToken& cancel) {
-        runner->run(id, cancel);
-      });
+  if (config.executor == "slurm") {
+    SlurmConfig slurm;
+    slurm.shared_dir = config.slurm_shared_dir.empty()
+                           ? (fs::path(config.data_dir) / "slurm").string()
+                           : fs::absolute(config.slurm_shared_dir).string();
+    slurm.partition = config.slurm_partition;
+    slurm.account = config.slurm_account;
+    slurm.time_limit = config.slurm_time_limit;
+    slurm.sbatch_args = config.slurm_sbatch_args;
+    slurm.solver = config.slurm_solver;
+    slurm.solver_threads = config.solver_threads;
+    slurm.array_throttle = config.workers;
+    slurm.poll_s = config.slurm_poll_s;
+    slurm.max_queued = config.max_queued;
+    d.scheduler = std::make_unique<SlurmExecutor>(slurm, *d.catalogue, *d.runner, d.events);
+  } else if (config.executor == "local") {
+    if (!d.catalogue->submitted_jobs().empty()) {
+      log_warning(
+          "jobs submitted to Slurm by an earlier run are not watched by the local "
+          "executor; start with --executor slurm to finish them");
+    }
+    d.scheduler = std::make_unique<LocalExecutor>(
+        Scheduler::Options{config.workers, config.max_queued},
+        [runner = d.runner.get()](const std::string& id, CancelToken& cancel) {
+          runner->run(id, cancel);
+        });
+  } else {
+    throw std::invalid_argument("--executor must be local or slurm, not '" + config.executor + "'");
+  }
   // Queued jobs in catalogue order; the bound does not apply to what was already accepted.
   const auto queued = d.catalogue->queued_jobs();
-  for (const auto& q : queued) d.scheduler->enqueue(q.id, q.priority, q.seq, false);
+  for (const auto& q : queued) {
+    // Already on Slurm: only the slurm executor may touch it (no second run).
+    if (config.executor != "slurm" && !d.catalogue->slurm_job_id(q.id).empty()) continue;
+    d.scheduler->enqueue(q.id, q.priority, q.seq, false);
+  }
 
   ServiceConfig sc;
   sc.limits = rc.limits;
@@ -153,7 +185,7 @@ Daemon::Daemon(DaemonConfig config) : impl_(std::make_unique<Impl>()) {
            " max-queued=", config.max_queued, " solver-threads=", config.solver_threads,
            " max-elements=", config.max_elements, " max-end-time=", config.max_end_time_s,
            " max-wall-time=", config.max_wall_time_s, " max-attempts=", config.max_attempts,
-           " auth=", d.auth->enabled() ? "bearer-token" : "none",
+           " executor=", config.executor, " auth=", d.auth->enabled() ? "bearer-token" : "none",
            " tls=", config.tls_cert.empty() ? "off" : "on",
            " catalogue-schema=", d.catalogue->schema_version());
   log_info("catalogue:", counts.str().empty() ? " empty" : counts.str(), "; ", queued.size(),

@@ -1,6 +1,7 @@
 // softshockd as an object: data folder, catalogue, start-up recovery, scheduler, job runner and
-// the gRPC server, started and stopped in the right order. main() parses flags and handles
-// signals; tests can run a Daemon in-process.
+// the gRPC server, started and stopped in the right order. main() reads the configuration
+// (server/daemon_config.hpp: flags, environment, file) and handles signals; tests can run a
+// Daemon in-process.
 #pragma once
 
 #include <cstddef>
@@ -17,6 +18,7 @@ struct DaemonConfig {
   int workers = 0;        // 0 = hardware threads
   std::size_t max_queued = 1000;
   std::string token_file;         // empty = no authentication
+  bool insecure_no_auth = false;  // allow no token on a non-loopback listen address
   std::string tls_cert, tls_key;  // both or neither
   int max_elements = 2'000'000;
   double max_end_time_s = 1e-5;
@@ -27,6 +29,15 @@ struct DaemonConfig {
   int max_receive_bytes = 4 << 20;
   double rpc_drain_s = 2.0;  // shutdown: in-flight RPCs get this long
   double job_stop_s = 6.0;   // shutdown: running jobs get this long to stop and requeue
+  // Where jobs run (docs/cluster.md): "local" (in-process workers) or "slurm" (sbatch; then
+  // `workers` is the most tasks of one array job running at once).
+  std::string executor = "local";
+  std::string slurm_partition, slurm_account;    // empty = the cluster's default
+  std::string slurm_time_limit;                  // sbatch --time; empty = the partition's
+  std::string slurm_shared_dir;                  // seen by daemon and nodes; empty = DATA/slurm
+  std::vector<std::string> slurm_sbatch_args;    // extra sbatch options, verbatim
+  std::string slurm_solver = "softshock-solve";  // the solver on the compute nodes
+  double slurm_poll_s = 1.0;                     // how often Slurm is asked for job states
 };
 
 class Daemon {

@@ -1,10 +1,12 @@
 #include "server/job_runner.hpp"
 
+#include <google/protobuf/struct.pb.h>
 #include <google/protobuf/util/json_util.h>
 
 #include <algorithm>
 #include <cctype>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <optional>
@@ -19,12 +21,6 @@ namespace softshock::server {
 namespace fs = std::filesystem;
 
 namespace {
-
-std::string lower(std::string s) {
-  std::transform(s.begin(), s.end(), s.begin(),
-                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
-  return s;
-}
 
 // Seconds in messages: "8e-09 s", not std::to_string's "0.000000 s".
 std::string seconds(double s) {
@@ -42,6 +38,15 @@ JobProgressRecord to_record(const Progress& p) {
   return r;
 }
 
+// A number of the summary JSON; null (written for non-finite values) reads back as NaN.
+double json_number(const google::protobuf::Struct& s, const std::string& key) {
+  const auto it = s.fields().find(key);
+  if (it == s.fields().end() || !it->second.has_number_value()) return NAN;
+  return it->second.number_value();
+}
+
+}  // namespace
+
 v1::RunSpec parse_stored_spec(const std::string& json) {
   v1::RunSpec spec;
   google::protobuf::util::JsonParseOptions options;
@@ -51,7 +56,73 @@ v1::RunSpec parse_stored_spec(const std::string& json) {
   return spec;
 }
 
-}  // namespace
+RunSummary parse_summary_json(const std::string& json) {
+  google::protobuf::Struct s;
+  if (!google::protobuf::util::JsonStringToMessage(json, &s).ok()) {
+    throw std::runtime_error("summary JSON does not parse");
+  }
+  RunSummary r;
+  const auto& f = s.fields();
+  auto text = [&](const char* key) {
+    const auto it = f.find(key);
+    return it == f.end() ? std::string() : it->second.string_value();
+  };
+  r.status = text("status");
+  r.error = text("error");
+  r.elements = static_cast<std::size_t>(json_number(s, "elements"));
+  r.nodes = static_cast<std::size_t>(json_number(s, "nodes"));
+  r.steps = static_cast<int64_t>(json_number(s, "steps"));
+  r.wall_time_s = json_number(s, "wall_time_s");
+  r.end_time_s = json_number(s, "end_time_s");
+  if (const auto g = f.find("groups"); g != f.end()) {
+    const auto& gs = g->second.struct_value();
+    r.groups.pbar = json_number(gs, "pbar");
+    r.groups.tbar_pulse = json_number(gs, "tbar_pulse");
+    r.groups.mubar = json_number(gs, "mubar");
+    r.groups.gamma = json_number(gs, "gamma");
+    r.groups.c1 = json_number(gs, "c1");
+    r.groups.c2 = json_number(gs, "c2");
+    r.groups.time_scale_s = json_number(gs, "time_scale_s");
+  }
+  r.energy_injected_J_per_m = json_number(s, "energy_injected_J_per_m");
+  r.energy_after_pulse_J_per_m = json_number(s, "energy_after_pulse_J_per_m");
+  r.max_abar_first_cycle = json_number(s, "max_abar_first_cycle");
+  r.max_abar = json_number(s, "max_abar");
+  r.dominant_mode_end = static_cast<int>(json_number(s, "dominant_mode_end"));
+  r.shock_at_center_s = json_number(s, "shock_at_center_s");
+  if (const auto rr = f.find("rim_reflections_s"); rr != f.end()) {
+    for (const auto& v : rr->second.list_value().values()) {
+      r.rim_reflections_s.push_back(v.number_value());
+    }
+  }
+  r.min_dt_s = json_number(s, "min_dt_s");
+  r.max_dt_s = json_number(s, "max_dt_s");
+  return r;
+}
+
+StoredSummary stored_summary_from_result(const std::string& h5_path, bool* complete) {
+  ResultReader reader(h5_path);
+  if (complete) *complete = reader.info().complete;
+  History history;
+  history.time = reader.series("time");
+  history.abar = reader.series("abar");
+  std::size_t rows = 0, cols = 0;
+  const std::vector<double> amplitudes = reader.mode_amplitudes(rows, cols);
+  // /modes has its own time axis; make_stored_summary pairs history.time[k] with modes[k].
+  const std::vector<double> mode_times = reader.mode_times();
+  History modes_history;
+  modes_history.time = mode_times;
+  for (std::size_t k = 0; k < rows; ++k) {
+    modes_history.modes.emplace_back(amplitudes.begin() + k * cols,
+                                     amplitudes.begin() + (k + 1) * cols);
+  }
+  const RunSummary summary = parse_summary_json(reader.info().summary_json);
+  StoredSummary stored = make_stored_summary(summary, modes_history);
+  const StoredSummary abar = make_stored_summary(summary, history);
+  stored.abar_times = abar.abar_times;
+  stored.abar_values = abar.abar_values;
+  return stored;
+}
 
 void check_mesh_file(const v1::RunSpec& spec) {
   if (spec.geometry().shape_case() != v1::Geometry::kMeshFile) return;
@@ -65,24 +136,26 @@ void check_mesh_file(const v1::RunSpec& spec) {
   }
 }
 
-std::string classify_failure(const std::string& solver_error) {
-  // Matches the messages of run_simulation (solver/simulation.cpp): "element inversion
-  // (J <= 0) ...", "non-finite state ...", "stable time step collapsed ...".
-  const std::string e = lower(solver_error);
-  auto has = [&](const char* word) { return e.find(word) != std::string::npos; };
-  if (has("inversion") || has("inverted")) return reason::kElementInversion;
-  if (has("non-finite") || has("not finite") || has("nan")) return reason::kNonFinite;
-  if (has("time step collapsed")) return reason::kTimeStepCollapse;
+std::string failure_reason(FailureKind kind) {
+  switch (kind) {
+    case FailureKind::kElementInversion:
+      return reason::kElementInversion;
+    case FailureKind::kNonFinite:
+      return reason::kNonFinite;
+    case FailureKind::kTimeStepCollapse:
+      return reason::kTimeStepCollapse;
+    case FailureKind::kNone:
+      break;
+  }
   return reason::kInternal;
 }
 
 StoredSummary make_stored_summary(const RunSummary& summary, const History& history,
-                                  double interval_s, int max_modes) {
+                                  double interval_s, int max_modes, std::size_t max_abar_samples) {
   StoredSummary out;
   out.summary = summary;
   const std::size_t samples = std::min(history.time.size(), history.modes.size());
-  if (samples == 0) return out;
-  std::size_t columns = history.modes[0].size();
+  std::size_t columns = samples == 0 ? 0 : history.modes[0].size();
   for (std::size_t k = 0; k < samples; ++k) columns = std::min(columns, history.modes[k].size());
   out.mode_count = static_cast<int>(std::min<std::size_t>(columns, max_modes));
   double next_time = -1e300;
@@ -93,6 +166,16 @@ StoredSummary make_stored_summary(const RunSummary& summary, const History& hist
     out.mode_times.push_back(history.time[k]);
     for (int m = 0; m < out.mode_count; ++m) out.mode_amplitudes.push_back(history.modes[k][m]);
     next_time = history.time[k] + interval_s;
+  }
+  // A-bar(t) for grid reductions ("A-bar at t-bar"): every history sample up to ~1000, then
+  // every k-th (the last one always kept).
+  const std::size_t n = std::min(history.time.size(), history.abar.size());
+  const std::size_t stride =
+      (n + max_abar_samples - 1) / std::max<std::size_t>(1, max_abar_samples);
+  for (std::size_t k = 0; k < n; ++k) {
+    if (k % std::max<std::size_t>(1, stride) != 0 && k + 1 != n) continue;
+    out.abar_times.push_back(history.time[k]);
+    out.abar_values.push_back(history.abar[k]);
   }
   return out;
 }
@@ -120,9 +203,35 @@ void JobRunner::remove_stale_files(const std::string& id) const {
   }
 }
 
+std::string JobRunner::link_result(const std::string& source_result_path,
+                                   const std::string& id) const {
+  return link_result_files(source_result_path, job_dir(id));
+}
+
+bool JobRunner::reuse_identical(const JobRecord& job) const {
+  auto source = catalogue_.find_reusable(job.spec_hash, job.id);
+  if (!source) return false;
+  try {
+    const std::string path = link_result(source->result_path, job.id);
+    if (!catalogue_.complete_reused(job.id, source->id, path, now_us())) return true;  // gone
+  } catch (const std::exception& e) {
+    // Not fatal: the job simply runs itself.
+    log_warning("job ", job.id, ": cannot reuse the result of ", source->id, ": ", e.what());
+    return false;
+  }
+  log_info("job ", job.id, " SUCCEEDED reusing the result of identical job ", source->id);
+  events_.forget(job.id);  // wakes watchers
+  return true;
+}
+
 void JobRunner::run(const std::string& id, CancelToken& cancel) {
   using Clock = std::chrono::steady_clock;
   const auto started = Clock::now();
+  // An identical run may have finished while this one waited in the queue.
+  if (auto queued = catalogue_.get(id); queued && queued->state == JobState::kQueued &&
+                                        queued->reuse_result && reuse_identical(*queued)) {
+    return;
+  }
   auto job = catalogue_.start(id, now_us());
   if (!job) return;  // cancelled or deleted while queued: nothing to do
   events_.set_progress(id, {});
@@ -259,7 +368,7 @@ void JobRunner::run(const std::string& id, CancelToken& cancel) {
       break;
     case RunStatus::kFailed:
       state = JobState::kFailed;
-      why = classify_failure(result.error);
+      why = failure_reason(result.failure);
       error = result.error;
       break;
     case RunStatus::kCancelled:

@@ -9,6 +9,7 @@
 #include "server/job_events.hpp"
 #include "server/scheduler.hpp"
 #include "solver/run_spec.hpp"
+#include "solver/simulation.hpp"
 
 namespace softshock::server {
 
@@ -31,6 +32,12 @@ class JobRunner {
   std::string meshes_dir() const;
   // Removes leftovers of an interrupted attempt (result.h5.tmp and friends) in a job folder.
   void remove_stale_files(const std::string& id) const;
+  // Gives job `id` the finished result files at source_result_path (hard links); returns its
+  // own result path. Throws std::runtime_error.
+  std::string link_result(const std::string& source_result_path, const std::string& id) const;
+  // QUEUED -> SUCCEEDED reusing an identical SUCCEEDED job's result, if there is one (true =
+  // the job needs no run).
+  bool reuse_identical(const JobRecord& job) const;
 
  private:
   RunnerConfig config_;
@@ -42,13 +49,29 @@ class JobRunner {
 // DATA/meshes/ — clients must not make the server open arbitrary files. Throws SpecError.
 void check_mesh_file(const v1::RunSpec& spec);
 
-// FAILED reason for a solver failure message: ELEMENT_INVERSION, NON_FINITE,
-// TIME_STEP_COLLAPSE or INTERNAL.
-std::string classify_failure(const std::string& solver_error);
+// FAILED reason for a solver failure: ELEMENT_INVERSION, NON_FINITE, TIME_STEP_COLLAPSE or
+// INTERNAL.
+std::string failure_reason(FailureKind kind);
 
 // Mode amplitudes of a run decimated to about one sample per `interval_s`, modes
-// 0..min(max_modes, M+1)-1, for the catalogue.
+// 0..min(max_modes, M+1)-1, and A-bar(t) decimated to at most ~max_abar_samples, for the
+// catalogue.
 StoredSummary make_stored_summary(const RunSummary& summary, const History& history,
-                                  double interval_s = 4e-9, int max_modes = 65);
+                                  double interval_s = 4e-9, int max_modes = 65,
+                                  std::size_t max_abar_samples = 1000);
+
+// A spec as the catalogue stores it (protobuf JSON); unknown fields are ignored. Throws
+// SpecError.
+v1::RunSpec parse_stored_spec(const std::string& json);
+
+// The summary JSON a result file (and softshock-solve's stdout) carries, back into a RunSummary
+// (null = NaN). Throws std::runtime_error.
+RunSummary parse_summary_json(const std::string& json);
+
+// The catalogue's figures of a run that wrote `h5_path` elsewhere (softshock-solve on a
+// cluster): its summary, modes and A-bar(t) read back and decimated exactly as
+// make_stored_summary does for an in-process run. `complete` gets the file's complete
+// attribute. Throws std::runtime_error.
+StoredSummary stored_summary_from_result(const std::string& h5_path, bool* complete = nullptr);
 
 }  // namespace softshock::server

@@ -1,5 +1,6 @@
 #include "server/scheduler.hpp"
 
+#include <algorithm>
 #include <exception>
 
 #include "server/log.hpp"
@@ -23,16 +24,18 @@ void Scheduler::start() {
   for (int i = 0; i < options_.workers; ++i) threads_.emplace_back([this] { worker_loop(); });
 }
 
-bool Scheduler::reserve() {
+bool Scheduler::reserve(std::size_t slots) {
   std::lock_guard lock(mutex_);
-  if (stopping_ || queue_.size() + reserved_ >= options_.max_queued) return false;
-  ++reserved_;
+  if (stopping_) return false;
+  if (slots == 0) return true;
+  if (queue_.size() + reserved_ + slots > options_.max_queued) return false;
+  reserved_ += slots;
   return true;
 }
 
-void Scheduler::release() {
+void Scheduler::release(std::size_t slots) {
   std::lock_guard lock(mutex_);
-  if (reserved_ > 0) --reserved_;
+  reserved_ -= std::min(reserved_, slots);
 }
 
 void Scheduler::enqueue(const std::string& id, int priority, int64_t seq, bool reserved) {

@@ -60,8 +60,9 @@ class Scheduler {
   // A submission slot: reserve() before committing a new job (false = queue full, so the
   // caller answers RESOURCE_EXHAUSTED without writing anything), then enqueue with the slot
   // or release it. Keeps concurrent submissions from overshooting max_queued.
-  bool reserve();
-  void release();
+  // A grid reserves all its points at once: all or nothing.
+  bool reserve(std::size_t slots = 1);
+  void release(std::size_t slots = 1);
   // `seq` is the FIFO key (the catalogue's insertion order). `reserved` consumes a slot;
   // without it the job is queued regardless of the bound (start-up recovery).
   void enqueue(const std::string& id, int priority, int64_t seq, bool reserved);

@@ -7,11 +7,15 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstring>
 #include <filesystem>
 #include <map>
+#include <optional>
+#include <sstream>
 #include <thread>
 
 #include "server/field_raster.hpp"
+#include "server/grid.hpp"
 #include "server/log.hpp"
 #include "server/spec_hash.hpp"
 #include "solver/io/result_file.hpp"
@@ -27,6 +31,8 @@ namespace {
 
 constexpr int kDefaultPageSize = 50;
 constexpr int kMaxPageSize = 1000;
+// A running job gets this long to stop by itself before CancelJob records the cancellation.
+constexpr double kCancelGraceS = 0.8;
 constexpr std::size_t kMaxLabels = 64;
 constexpr std::size_t kMaxLabelKey = 63;
 constexpr std::size_t kMaxLabelValue = 255;
@@ -43,9 +49,10 @@ Status not_found(const std::string& id) {
   return {StatusCode::NOT_FOUND, "job " + id + " not found"};
 }
 
-// "jobs/{id}" or the bare id; ids are [A-Za-z0-9_-]{1,64} (they name folders on disk).
-bool parse_id(const std::string& name, std::string* id) {
-  std::string s = name.rfind("jobs/", 0) == 0 ? name.substr(5) : name;
+// "jobs/{id}" (or "grids/{id}") or the bare id; ids are [A-Za-z0-9_-]{1,64} (they name folders
+// on disk).
+bool parse_id(const std::string& name, std::string* id, const std::string& collection = "jobs/") {
+  std::string s = name.rfind(collection, 0) == 0 ? name.substr(collection.size()) : name;
   if (s.empty() || s.size() > 64) return false;
   for (unsigned char c : s) {
     if (!std::isalnum(c) && c != '-' && c != '_') return false;
@@ -96,6 +103,46 @@ bool base64url_decode(const std::string& in, std::string* out) {
   return true;
 }
 
+// Page tokens are base64url("CURSOR:FINGERPRINT"): the cursor is the handler's own position
+// text, the fingerprint binds the token to the request's other fields (AIP-158: they must
+// match across pages).
+std::string make_page_token(const std::string& cursor, const std::string& fingerprint) {
+  return base64url_encode(cursor + ":" + fingerprint);
+}
+
+// An empty token gives an empty cursor (the first page).
+Status read_page_token(const std::string& page_token, const std::string& fingerprint,
+                       std::string* cursor) {
+  cursor->clear();
+  if (page_token.empty()) return Status::OK;
+  std::string token;
+  const auto colon = [&] { return token.rfind(':'); };
+  if (!base64url_decode(page_token, &token) || colon() == std::string::npos || colon() == 0) {
+    return invalid("page_token", "not a token this server issued");
+  }
+  if (token.substr(colon() + 1) != fingerprint) {
+    return invalid("page_token", "the filters differ from those of the first page");
+  }
+  *cursor = token.substr(0, colon());
+  return Status::OK;
+}
+
+bool parse_seq_cursor(const std::string& cursor, int64_t* seq) {
+  try {
+    std::size_t used = 0;
+    *seq = std::stoll(cursor, &used);
+    return used == cursor.size() && *seq > 0;
+  } catch (const std::exception&) {
+    return false;
+  }
+}
+
+Status page_size_of(int32_t requested, int* page_size) {
+  if (requested < 0) return invalid("page_size", "must not be negative");
+  *page_size = requested == 0 ? kDefaultPageSize : std::min<int>(requested, kMaxPageSize);
+  return Status::OK;
+}
+
 // The filters a page token is bound to (AIP-158: other fields must match across pages).
 std::string list_fingerprint(const v1::ListJobsRequest& req) {
   std::string f = std::to_string(req.state()) + "|" + req.label() + "|";
@@ -103,24 +150,6 @@ std::string list_fingerprint(const v1::ListJobsRequest& req) {
   f += "|";
   if (req.has_created_before()) f += std::to_string(timestamp_us(req.created_before()));
   return sha256_hex(f).substr(0, 16);
-}
-
-const std::map<std::string, std::string>& series_units() {
-  static const std::map<std::string, std::string> units = {
-      {"time", "s"},
-      {"kinetic_energy", "J/m"},
-      {"elastic_energy", "J/m"},
-      {"dissipated_energy", "J/m"},
-      {"external_work", "J/m"},
-      {"abar", "1"},
-      {"center_mean_stress", "Pa"},
-      {"rim_mean_radial_displacement", "m"},
-      {"rim_mean_radial_velocity", "m/s"},
-      {"rim_mean_radial_acceleration", "m/s^2"},
-      {"rim_min_hoop_stress", "Pa"},
-      {"dt", "s"},
-  };
-  return units;
 }
 
 struct FieldKind {
@@ -184,7 +213,7 @@ class StreamSlot {
 };
 
 SimulationService::SimulationService(ServiceConfig config, Catalogue& catalogue,
-                                     Scheduler& scheduler, JobEvents& events,
+                                     Executor& scheduler, JobEvents& events,
                                      const JobRunner& runner, const Authenticator& auth)
     : config_(config),
       catalogue_(catalogue),
@@ -232,6 +261,9 @@ void SimulationService::fill_job(const JobRecord& r, v1::Job* job) const {
   job->set_attempt(r.attempt);
   job->set_request_id(r.request_id);
   job->set_spec_hash(r.spec_hash);
+  job->set_grid_id(r.grid_id);
+  job->set_grid_index(r.grid_index);
+  job->set_reused_from(r.reused_from);
 }
 
 std::optional<JobRecord> SimulationService::wait_terminal(const std::string& id,
@@ -256,15 +288,48 @@ Status SimulationService::SubmitJob(grpc::ServerContext* ctx, const v1::SubmitJo
   return guarded(auth_, ctx, "SubmitJob", [&] { return submit(ctx, *req, resp); });
 }
 
-Status SimulationService::submit(grpc::ServerContext* ctx, const v1::SubmitJobRequest& req,
-                                 v1::Job* resp) {
-  if (req.request_id().size() > kMaxRequestId) {
+namespace {
+
+// NaN stays NaN: the protobuf double carries it, and clients read it as "not known".
+void fill_groups(const NondimensionalGroups& from, v1::NondimensionalGroups* g) {
+  g->set_pbar(from.pbar);
+  g->set_tbar_pulse(from.tbar_pulse);
+  g->set_mubar(from.mubar);
+  g->set_gamma(from.gamma);
+  g->set_c1(from.c1);
+  g->set_c2(from.c2);
+  g->set_time_scale(from.time_scale_s);
+}
+
+void fill_summary(const std::string& id, const RunSummary& s, v1::JobSummary* resp) {
+  resp->set_id(id);
+  resp->set_elements(static_cast<int64_t>(s.elements));
+  resp->set_nodes(static_cast<int64_t>(s.nodes));
+  resp->set_steps(s.steps);
+  resp->set_wall_time(s.wall_time_s);
+  resp->set_end_time(s.end_time_s);
+  fill_groups(s.groups, resp->mutable_groups());
+  resp->set_energy_injected(s.energy_injected_J_per_m);
+  resp->set_energy_after_pulse(s.energy_after_pulse_J_per_m);
+  resp->set_max_abar_first_cycle(s.max_abar_first_cycle);
+  resp->set_max_abar(s.max_abar);
+  resp->set_dominant_mode_end(s.dominant_mode_end);
+  resp->set_shock_at_center(s.shock_at_center_s);
+  for (double t : s.rim_reflections_s) resp->add_rim_reflections(t);
+  resp->set_min_dt(s.min_dt_s);
+  resp->set_max_dt(s.max_dt_s);
+}
+
+// request_id and labels of SubmitJob and SubmitGrid.
+Status check_request_id_and_labels(const std::string& request_id,
+                                   const google::protobuf::Map<std::string, std::string>& labels) {
+  if (request_id.size() > kMaxRequestId) {
     return invalid("request_id", "at most " + std::to_string(kMaxRequestId) + " characters");
   }
-  if (req.labels_size() > static_cast<int>(kMaxLabels)) {
+  if (labels.size() > kMaxLabels) {
     return invalid("labels", "at most " + std::to_string(kMaxLabels) + " labels");
   }
-  for (const auto& [key, value] : req.labels()) {
+  for (const auto& [key, value] : labels) {
     if (key.empty() || key.size() > kMaxLabelKey || key.find('=') != std::string::npos) {
       return invalid("labels",
                      "keys must be 1.." + std::to_string(kMaxLabelKey) + " characters without '='");
@@ -274,6 +339,22 @@ Status SimulationService::submit(grpc::ServerContext* ctx, const v1::SubmitJobRe
                      "values must be at most " + std::to_string(kMaxLabelValue) + " characters");
     }
   }
+  return Status::OK;
+}
+
+// INVALID_ARGUMENT for a SpecError found under `prefix` ("spec", "base_spec", or "" for grid
+// fields), with the field path repeated in the trailing metadata.
+Status spec_invalid(grpc::ServerContext* ctx, const std::string& prefix, const SpecError& e) {
+  const std::string dot = prefix.empty() ? "" : prefix + ".";
+  ctx->AddTrailingMetadata("softshock-field", dot + e.field());
+  return {StatusCode::INVALID_ARGUMENT, dot + e.what()};
+}
+
+}  // namespace
+
+Status SimulationService::submit(grpc::ServerContext* ctx, const v1::SubmitJobRequest& req,
+                                 v1::Job* resp) {
+  if (Status s = check_request_id_and_labels(req.request_id(), req.labels()); !s.ok()) return s;
   // A repeated request_id returns the first job, even when the queue is full (AIP-155).
   if (!req.request_id().empty()) {
     if (auto existing = catalogue_.find_by_request_id(req.request_id())) {
@@ -281,20 +362,21 @@ Status SimulationService::submit(grpc::ServerContext* ctx, const v1::SubmitJobRe
       return Status::OK;
     }
   }
-  v1::RunSpec spec;
+  CanonicalSpec spec;
   try {
-    spec = normalize_spec(req.spec(), config_.limits);
-    check_mesh_file(spec);
+    spec = canonical_spec(req.spec(), config_.limits);
+    check_mesh_file(spec.spec);
   } catch (const SpecError& e) {
-    ctx->AddTrailingMetadata("softshock-field", "spec." + e.field());
-    return {StatusCode::INVALID_ARGUMENT, std::string("spec.") + e.what()};
+    return spec_invalid(ctx, "spec", e);
   }
   NewJob job;
-  job.spec_json = spec_to_json(spec);
-  job.spec_hash = sha256_hex(job.spec_json);
+  job.spec_json = spec.json;
+  job.spec_hash = spec.hash;
+  job.groups = spec_groups(spec.spec);
   job.request_id = req.request_id();
   job.labels.insert(req.labels().begin(), req.labels().end());
   job.priority = req.priority();
+  job.reuse_result = req.reuse_result();
 
   if (!scheduler_.reserve()) {
     return {StatusCode::RESOURCE_EXHAUSTED, "the queue is full (" +
@@ -320,6 +402,9 @@ Status SimulationService::submit(grpc::ServerContext* ctx, const v1::SubmitJobRe
   }
   if (!inserted.created) {
     scheduler_.release();  // raced with the same request_id
+  } else if (job.reuse_result && runner_.reuse_identical(inserted.job)) {
+    scheduler_.release();
+    inserted.job = catalogue_.get(inserted.job.id).value_or(inserted.job);
   } else {
     scheduler_.enqueue(inserted.job.id, inserted.job.priority, inserted.job.seq, true);
     events_.notify(inserted.job.id);
@@ -350,9 +435,8 @@ Status SimulationService::ListJobs(grpc::ServerContext* ctx, const v1::ListJobsR
 }
 
 Status SimulationService::list(const v1::ListJobsRequest& req, v1::ListJobsResponse* resp) {
-  if (req.page_size() < 0) return invalid("page_size", "must not be negative");
-  const int page_size =
-      req.page_size() == 0 ? kDefaultPageSize : std::min(req.page_size(), kMaxPageSize);
+  int page_size = 0;
+  if (Status s = page_size_of(req.page_size(), &page_size); !s.ok()) return s;
   ListFilter filter;
   if (req.state() != v1::JOB_STATE_UNSPECIFIED) {
     if (req.state() < v1::QUEUED || req.state() > v1::CANCELLED) {
@@ -369,31 +453,18 @@ Status SimulationService::list(const v1::ListJobsRequest& req, v1::ListJobsRespo
   if (req.has_created_after()) filter.created_after_us = timestamp_us(req.created_after());
   if (req.has_created_before()) filter.created_before_us = timestamp_us(req.created_before());
   const std::string fingerprint = list_fingerprint(req);
-  if (!req.page_token().empty()) {
-    std::string token;
-    const auto colon = [&] { return token.find(':'); };
-    if (!base64url_decode(req.page_token(), &token) || colon() == std::string::npos) {
-      return invalid("page_token", "not a token this server issued");
-    }
-    if (token.substr(colon() + 1) != fingerprint) {
-      return invalid("page_token", "the filters differ from those of the first page");
-    }
-    try {
-      filter.before_seq = std::stoll(token.substr(0, colon()));
-    } catch (const std::exception&) {
-      return invalid("page_token", "not a token this server issued");
-    }
-    if (filter.before_seq <= 0) return invalid("page_token", "not a token this server issued");
+  std::string cursor;
+  if (Status s = read_page_token(req.page_token(), fingerprint, &cursor); !s.ok()) return s;
+  if (!cursor.empty() && !parse_seq_cursor(cursor, &filter.before_seq)) {
+    return invalid("page_token", "not a token this server issued");
   }
   filter.limit = page_size + 1;  // one extra row tells whether another page exists
   auto rows = catalogue_.list(filter);
   const bool more = static_cast<int>(rows.size()) > page_size;
   if (more) rows.resize(static_cast<std::size_t>(page_size));
   for (const auto& r : rows) fill_job(r, resp->add_jobs());
-  if (more) {
-    resp->set_next_page_token(
-        base64url_encode(std::to_string(rows.back().seq) + ":" + fingerprint));
-  }
+  if (more)
+    resp->set_next_page_token(make_page_token(std::to_string(rows.back().seq), fingerprint));
   return Status::OK;
 }
 
@@ -472,10 +543,23 @@ Status SimulationService::cancel(const std::string& id, v1::Job* resp) {
     events_.forget(id);
     log_info("job ", id, " CANCELLED while queued");
   } else {
-    // Running (or a worker just picked it up): the solver checks the flag every step.
+    // Running (or a worker just picked it up): the solver checks the flag every step and
+    // normally stops within milliseconds, keeping its partial result.
     scheduler_.cancel(id, StopReason::kUser);
-    record = wait_terminal(id, config_.cancel_wait_s);
+    record = wait_terminal(id, std::min(config_.cancel_wait_s, kCancelGraceS));
     if (!record) return not_found(id);
+    if (record->state == JobState::kRunning) {
+      // Still in an uninterruptible phase (Gmsh meshing): record the cancellation now so it
+      // takes effect within a second; the worker's own conditional update then loses the race
+      // and it drops the job when meshing returns.
+      if (catalogue_.finish(id, record->attempt, JobState::kCancelled, reason::kCancelledByUser,
+                            "cancelled by user while the worker was meshing", "",
+                            events_.progress(id).value_or(JobProgressRecord{}), nullptr,
+                            now_us())) {
+        log_info("job ", id, " CANCELLED while meshing (worker stops when Gmsh returns)");
+      }
+      events_.forget(id);
+    }
   }
   record = catalogue_.get(id);
   if (!record) return not_found(id);
@@ -555,30 +639,7 @@ Status SimulationService::summary(const std::string& id, v1::JobSummary* resp) {
     return {StatusCode::FAILED_PRECONDITION,
             "job " + id + " is " + to_string(record->state) + " and has no summary"};
   }
-  const RunSummary& s = stored->summary;
-  resp->set_id(id);
-  resp->set_elements(static_cast<int64_t>(s.elements));
-  resp->set_nodes(static_cast<int64_t>(s.nodes));
-  resp->set_steps(s.steps);
-  resp->set_wall_time(s.wall_time_s);
-  resp->set_end_time(s.end_time_s);
-  auto* g = resp->mutable_groups();
-  g->set_pbar(s.groups.pbar);
-  g->set_tbar_pulse(s.groups.tbar_pulse);
-  g->set_mubar(s.groups.mubar);
-  g->set_gamma(s.groups.gamma);
-  g->set_c1(s.groups.c1);
-  g->set_c2(s.groups.c2);
-  g->set_time_scale(s.groups.time_scale_s);
-  resp->set_energy_injected(s.energy_injected_J_per_m);
-  resp->set_energy_after_pulse(s.energy_after_pulse_J_per_m);
-  resp->set_max_abar_first_cycle(s.max_abar_first_cycle);
-  resp->set_max_abar(s.max_abar);
-  resp->set_dominant_mode_end(s.dominant_mode_end);
-  resp->set_shock_at_center(s.shock_at_center_s);
-  for (double t : s.rim_reflections_s) resp->add_rim_reflections(t);
-  resp->set_min_dt(s.min_dt_s);
-  resp->set_max_dt(s.max_dt_s);
+  fill_summary(id, stored->summary, resp);
   return Status::OK;
 }
 
@@ -619,8 +680,7 @@ Status SimulationService::time_series(const v1::GetTimeSeriesRequest& req, v1::T
     if (n == "time") continue;
     auto* series = resp->add_series();
     series->set_name(n);
-    auto u = series_units().find(n);
-    series->set_units(u == series_units().end() ? "" : u->second);
+    series->set_units(series_units(n));
     const auto values = every_kth(reader.series(n), req.every());
     series->mutable_values()->Add(values.begin(), values.end());
   }
@@ -784,6 +844,410 @@ Status SimulationService::field(grpc::ServerContext* ctx, const v1::GetFieldRequ
     chunk.set_offset(static_cast<int64_t>(offset));
     chunk.mutable_values()->Add(values.begin() + offset, values.begin() + end);
     if (!writer->Write(chunk)) return {StatusCode::CANCELLED, "client went away"};
+  }
+  return Status::OK;
+}
+
+// --- Grids ---------------------------------------------------------------------------------
+
+namespace {
+
+Status grid_not_found(const std::string& id) {
+  return {StatusCode::NOT_FOUND, "grid " + id + " not found"};
+}
+
+// The grid's derived state (see Grid.state in service.proto).
+v1::JobState grid_state(const GridCounts& c, int point_count) {
+  auto count = [&](JobState s) {
+    auto it = c.by_state.find(s);
+    return it == c.by_state.end() ? 0 : it->second;
+  };
+  int present = 0;
+  for (const auto& [state, n] : c.by_state) present += n;
+  // A deleted point (DeleteJob) will never finish: it counts as finished, with no result.
+  const int finished = count(JobState::kSucceeded) + count(JobState::kFailed) +
+                       count(JobState::kCancelled) + (point_count - present);
+  if (finished < point_count) {
+    return count(JobState::kRunning) > 0 || finished > 0 ? v1::RUNNING : v1::QUEUED;
+  }
+  if (count(JobState::kFailed) > 0) return v1::FAILED;
+  if (count(JobState::kCancelled) > 0) return v1::CANCELLED;
+  return v1::SUCCEEDED;
+}
+
+}  // namespace
+
+void SimulationService::fill_grid(const GridRecord& r, v1::Grid* grid) const {
+  google::protobuf::util::JsonParseOptions parse;
+  parse.ignore_unknown_fields = true;
+  if (!google::protobuf::util::JsonStringToMessage(r.definition, grid, parse).ok()) {
+    log_warning("grid ", r.id, ": stored definition does not parse");
+  }
+  grid->set_name("grids/" + r.id);
+  grid->set_id(r.id);
+  grid->set_point_count(r.point_count);
+  grid->set_request_id(r.request_id);
+  grid->set_cancelled(r.cancelled);
+  set_timestamp(r.create_us, grid->mutable_create_time());
+  const GridCounts c = catalogue_.grid_counts(r.id);
+  auto count = [&](JobState s) {
+    auto it = c.by_state.find(s);
+    return it == c.by_state.end() ? 0 : it->second;
+  };
+  auto* counts = grid->mutable_counts();
+  counts->set_queued(count(JobState::kQueued));
+  counts->set_running(count(JobState::kRunning));
+  counts->set_succeeded(count(JobState::kSucceeded));
+  counts->set_failed(count(JobState::kFailed));
+  counts->set_cancelled(count(JobState::kCancelled));
+  counts->set_reused(c.reused);
+  int present = 0;
+  for (const auto& [state, n] : c.by_state) present += n;
+  double done =
+      counts->succeeded() + counts->failed() + counts->cancelled() + (r.point_count - present);
+  for (const auto& id : c.running) {
+    if (auto live = events_.progress(id)) done += live->fraction;
+  }
+  grid->set_progress(r.point_count > 0 ? std::min(1.0, done / r.point_count) : 1.0);
+  grid->set_state(grid_state(c, r.point_count));
+}
+
+Status SimulationService::SubmitGrid(grpc::ServerContext* ctx, const v1::SubmitGridRequest* req,
+                                     v1::Grid* resp) {
+  return guarded(auth_, ctx, "SubmitGrid", [&] { return submit_grid(ctx, *req, resp); });
+}
+
+Status SimulationService::submit_grid(grpc::ServerContext* ctx, const v1::SubmitGridRequest& req,
+                                      v1::Grid* resp) {
+  if (Status s = check_request_id_and_labels(req.request_id(), req.labels()); !s.ok()) return s;
+  if (!req.request_id().empty()) {
+    if (auto existing = catalogue_.find_grid_by_request_id(req.request_id())) {
+      fill_grid(*existing, resp);
+      return Status::OK;
+    }
+  }
+  CanonicalSpec base;
+  GridPlan plan;
+  try {
+    base = canonical_spec(req.base_spec(), config_.limits);
+    check_mesh_file(base.spec);
+  } catch (const SpecError& e) {
+    return spec_invalid(ctx, "base_spec", e);
+  }
+  try {
+    plan = expand_grid(base.spec, req.axes(), config_.limits);
+  } catch (const SpecError& e) {
+    return spec_invalid(ctx, "", e);
+  }
+
+  // The definition the grid is stored as: what GetGrid returns besides the live figures.
+  v1::Grid definition;
+  *definition.mutable_base_spec() = base.spec;
+  for (const auto& axis : plan.axes) *definition.add_axes() = axis;
+  definition.mutable_shape()->Assign(plan.shape.begin(), plan.shape.end());
+  definition.mutable_labels()->insert(req.labels().begin(), req.labels().end());
+  definition.set_priority(req.priority());
+  definition.set_recompute(req.recompute());
+  NewGrid grid;
+  grid.id = new_job_id();
+  grid.request_id = req.request_id();
+  grid.create_us = now_us();
+  (void)google::protobuf::util::MessageToJsonString(definition, &grid.definition);
+
+  // Identical runs are computed once: a point whose canonical spec matches a SUCCEEDED job
+  // reuses its result (linked below, before the points are committed).
+  std::vector<NewJob> points(plan.points.size());
+  std::vector<std::optional<JobRecord>> sources(points.size());
+  std::size_t to_run = 0;
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    NewJob& p = points[i];
+    p.id = new_job_id();
+    p.spec_json = plan.points[i].json;
+    p.spec_hash = plan.points[i].hash;
+    p.groups = spec_groups(plan.points[i].spec);
+    p.labels.insert(req.labels().begin(), req.labels().end());
+    p.priority = req.priority();
+    p.create_us = grid.create_us;
+    p.grid_id = grid.id;
+    p.grid_index = static_cast<int>(i);
+    p.reuse_result = !req.recompute();
+    if (p.reuse_result) sources[i] = catalogue_.find_reusable(p.spec_hash);
+    if (!sources[i]) ++to_run;
+  }
+  if (!scheduler_.reserve(to_run)) {
+    return {StatusCode::RESOURCE_EXHAUSTED,
+            "the queue cannot take " + std::to_string(to_run) + " more jobs (" +
+                std::to_string(scheduler_.queued()) + " waiting); retry later"};
+  }
+  std::size_t reserved = to_run;
+  auto remove_links = [&] {
+    for (const auto& p : points) {
+      std::error_code ec;
+      if (!p.reused_from.empty()) fs::remove_all(runner_.job_dir(p.id), ec);
+    }
+  };
+  Catalogue::GridInsertResult inserted;
+  try {
+    for (std::size_t i = 0; i < points.size(); ++i) {
+      if (!sources[i]) continue;
+      try {
+        points[i].result_path = runner_.link_result(sources[i]->result_path, points[i].id);
+        points[i].reused_from = sources[i]->id;
+      } catch (const std::exception& e) {
+        // The source went away meanwhile: this point runs after all (it tries again at start).
+        log_warning("grid ", grid.id, ": cannot reuse ", sources[i]->id, ": ", e.what());
+        if (!scheduler_.reserve(1)) throw std::runtime_error("the queue filled up meanwhile");
+        ++reserved;
+      }
+    }
+    inserted = catalogue_.insert_grid(grid, points);
+  } catch (...) {
+    remove_links();
+    scheduler_.release(reserved);
+    throw;
+  }
+  std::size_t reused = 0;
+  if (!inserted.created) {
+    // Raced with the same request_id: the other submission's grid stands.
+    remove_links();
+    scheduler_.release(reserved);
+  } else {
+    for (std::size_t i = 0; i < points.size(); ++i) {
+      if (!points[i].reused_from.empty()) {
+        ++reused;
+        continue;
+      }
+      scheduler_.enqueue(points[i].id, points[i].priority, inserted.point_seqs[i], true);
+    }
+    log_info("grid ", grid.id, " submitted: ", points.size(), " points, ", reused,
+             " reusing identical runs");
+  }
+  fill_grid(inserted.grid, resp);
+  return Status::OK;
+}
+
+Status SimulationService::GetGrid(grpc::ServerContext* ctx, const v1::GetGridRequest* req,
+                                  v1::Grid* resp) {
+  return guarded(auth_, ctx, "GetGrid", [&]() -> Status {
+    std::string id;
+    if (!parse_id(req->id(), &id, "grids/")) return invalid("id", "not a grid name");
+    auto record = catalogue_.get_grid(id);
+    if (!record) return grid_not_found(id);
+    fill_grid(*record, resp);
+    return Status::OK;
+  });
+}
+
+Status SimulationService::ListGrids(grpc::ServerContext* ctx, const v1::ListGridsRequest* req,
+                                    v1::ListGridsResponse* resp) {
+  return guarded(auth_, ctx, "ListGrids", [&]() -> Status {
+    int page_size = 0;
+    if (Status s = page_size_of(req->page_size(), &page_size); !s.ok()) return s;
+    std::string cursor;
+    if (Status s = read_page_token(req->page_token(), "grids", &cursor); !s.ok()) return s;
+    int64_t before_seq = 0;
+    if (!cursor.empty() && !parse_seq_cursor(cursor, &before_seq)) {
+      return invalid("page_token", "not a token this server issued");
+    }
+    auto rows = catalogue_.list_grids(before_seq, page_size + 1);
+    const bool more = static_cast<int>(rows.size()) > page_size;
+    if (more) rows.resize(static_cast<std::size_t>(page_size));
+    for (const auto& r : rows) fill_grid(r, resp->add_grids());
+    if (more) resp->set_next_page_token(make_page_token(std::to_string(rows.back().seq), "grids"));
+    return Status::OK;
+  });
+}
+
+Status SimulationService::CancelGrid(grpc::ServerContext* ctx, const v1::CancelGridRequest* req,
+                                     v1::Grid* resp) {
+  return guarded(auth_, ctx, "CancelGrid", [&]() -> Status {
+    std::string id;
+    if (!parse_id(req->id(), &id, "grids/")) return invalid("id", "not a grid name");
+    return cancel_grid(id, resp);
+  });
+}
+
+Status SimulationService::cancel_grid(const std::string& id, v1::Grid* resp) {
+  auto record = catalogue_.get_grid(id);
+  if (!record) return grid_not_found(id);
+  v1::Grid before;
+  fill_grid(*record, &before);
+  if (before.state() == v1::SUCCEEDED || before.state() == v1::FAILED ||
+      before.state() == v1::CANCELLED) {
+    return {StatusCode::FAILED_PRECONDITION,
+            "grid " + id + " is already " + v1::JobState_Name(before.state())};
+  }
+  const GridCancellation c = catalogue_.cancel_grid(id, now_us());
+  for (const auto& job : c.cancelled) {
+    scheduler_.cancel(job, StopReason::kUser);  // drop it from the queue
+    events_.forget(job);
+  }
+  // Running points stop within a step; the answer does not wait for them (GetGrid shows it).
+  for (const auto& job : c.running) scheduler_.cancel(job, StopReason::kUser);
+  log_info("grid ", id, " cancelled: ", c.cancelled.size(), " queued point(s) cancelled, ",
+           c.running.size(), " running point(s) stopping");
+  record = catalogue_.get_grid(id);
+  if (!record) return grid_not_found(id);
+  fill_grid(*record, resp);
+  return Status::OK;
+}
+
+Status SimulationService::GetGridReduction(grpc::ServerContext* ctx,
+                                           const v1::GetGridReductionRequest* req,
+                                           v1::GridReduction* resp) {
+  return guarded(auth_, ctx, "GetGridReduction", [&] { return grid_reduction(*req, resp); });
+}
+
+Status SimulationService::grid_reduction(const v1::GetGridReductionRequest& req,
+                                         v1::GridReduction* resp) {
+  std::string id;
+  if (!parse_id(req.id(), &id, "grids/")) return invalid("id", "not a grid name");
+  const std::string name = req.quantity().empty() ? grid_quantities().front().name : req.quantity();
+  const GridQuantity* quantity = find_grid_quantity(name);
+  if (quantity == nullptr) {
+    std::string known;
+    for (const auto& q : grid_quantities())
+      known += (known.empty() ? "" : ", ") + std::string(q.name);
+    return invalid("quantity", "unknown quantity '" + name + "' (known: " + known + ")");
+  }
+  if (quantity->needs_tbar && !(req.has_tbar() && std::isfinite(req.tbar()) && req.tbar() >= 0)) {
+    return invalid("tbar", "abar_at needs a finite t-bar >= 0");
+  }
+  auto record = catalogue_.get_grid(id);
+  if (!record) return grid_not_found(id);
+  v1::Grid grid;
+  fill_grid(*record, &grid);
+  resp->set_grid_id(id);
+  resp->set_quantity(quantity->name);
+  resp->set_units(quantity->units);
+  resp->set_tbar(quantity->needs_tbar ? req.tbar() : 0.0);
+  *resp->mutable_axes() = grid.axes();
+  *resp->mutable_shape() = grid.shape();
+  const auto n = static_cast<std::size_t>(record->point_count);
+  std::vector<double> values(n, NAN);
+  std::vector<std::string> ids(n);
+  std::vector<int> states(n, v1::JOB_STATE_UNSPECIFIED);  // a deleted point stays unspecified
+  for (const auto& p : catalogue_.grid_points(id)) {
+    if (p.index < 0 || static_cast<std::size_t>(p.index) >= n) continue;
+    ids[p.index] = p.job_id;
+    states[p.index] = static_cast<int>(p.state);
+    if (p.state == JobState::kSucceeded && p.summary) {
+      values[p.index] = grid_quantity(*quantity, *p.summary, req.tbar());
+    }
+  }
+  resp->mutable_values()->Assign(values.begin(), values.end());
+  for (std::size_t i = 0; i < n; ++i) {
+    resp->add_job_ids(ids[i]);
+    resp->add_states(static_cast<v1::JobState>(states[i]));
+  }
+  return Status::OK;
+}
+
+// --- QueryJobs -----------------------------------------------------------------------------
+
+Status SimulationService::QueryJobs(grpc::ServerContext* ctx, const v1::QueryJobsRequest* req,
+                                    v1::QueryJobsResponse* resp) {
+  return guarded(auth_, ctx, "QueryJobs", [&] { return query(*req, resp); });
+}
+
+Status SimulationService::query(const v1::QueryJobsRequest& req, v1::QueryJobsResponse* resp) {
+  constexpr int kMaxFilters = 16;
+  const auto& names = query_column_names();
+  auto known = [&](const std::string& n) {
+    return std::find(names.begin(), names.end(), n) != names.end();
+  };
+  auto known_list = [&] {
+    std::string list;
+    for (const auto& n : names) list += (list.empty() ? "" : ", ") + n;
+    return list;
+  };
+  int page_size = 0;
+  if (Status s = page_size_of(req.page_size(), &page_size); !s.ok()) return s;
+  if (req.filters_size() > kMaxFilters) {
+    return invalid("filters", "at most " + std::to_string(kMaxFilters) + " filters");
+  }
+  JobQuery q;
+  for (int i = 0; i < req.filters_size(); ++i) {
+    const auto& f = req.filters(i);
+    const std::string field = "filters[" + std::to_string(i) + "]";
+    if (!known(f.name())) {
+      return invalid(field + ".name",
+                     "unknown name '" + f.name() + "' (known: " + known_list() + ")");
+    }
+    RangeCondition c;
+    c.name = f.name();
+    const std::pair<bool, double> bounds[] = {
+        {f.has_gt(), f.gt()}, {f.has_ge(), f.ge()}, {f.has_lt(), f.lt()}, {f.has_le(), f.le()}};
+    for (const auto& [given, value] : bounds) {
+      if (given && !std::isfinite(value)) return invalid(field, "bounds must be finite");
+    }
+    if (!f.has_gt() && !f.has_ge() && !f.has_lt() && !f.has_le()) {
+      return invalid(field, "give at least one of gt, ge, lt, le");
+    }
+    if (f.has_gt()) c.gt = f.gt();
+    if (f.has_ge()) c.ge = f.ge();
+    if (f.has_lt()) c.lt = f.lt();
+    if (f.has_le()) c.le = f.le();
+    q.conditions.push_back(c);
+  }
+  if (req.state() != v1::JOB_STATE_UNSPECIFIED) {
+    if (req.state() < v1::QUEUED || req.state() > v1::CANCELLED) {
+      return invalid("state", "unknown state " + std::to_string(req.state()));
+    }
+    q.state = static_cast<JobState>(req.state());
+  }
+  if (!req.grid_id().empty() && !parse_id(req.grid_id(), &q.grid_id, "grids/")) {
+    return invalid("grid_id", "not a grid name");
+  }
+  if (!req.order_by().empty()) {
+    std::istringstream words(req.order_by());
+    std::string column, direction, extra;
+    words >> column >> direction >> extra;
+    if (!known(column)) {
+      return invalid("order_by", "unknown name '" + column + "' (known: " + known_list() + ")");
+    }
+    if (!extra.empty() || (!direction.empty() && direction != "asc" && direction != "desc")) {
+      return invalid("order_by", "expected NAME, NAME asc or NAME desc");
+    }
+    q.order_by = column;
+    q.descending = direction == "desc";
+  }
+  v1::QueryJobsRequest shape = req;
+  shape.clear_page_size();
+  shape.clear_page_token();
+  const std::string fingerprint = sha256_hex(shape.SerializeAsString()).substr(0, 16);
+  std::string cursor;
+  if (Status s = read_page_token(req.page_token(), fingerprint, &cursor); !s.ok()) return s;
+  if (!cursor.empty()) {
+    // "KEY,SEQ": the sort key's bits in hex (exact), then the row's seq.
+    const auto comma = cursor.find(',');
+    uint64_t bits = 0;
+    if (comma == std::string::npos || !parse_seq_cursor(cursor.substr(comma + 1), &q.after_seq)) {
+      return invalid("page_token", "not a token this server issued");
+    }
+    try {
+      bits = std::stoull(cursor.substr(0, comma), nullptr, 16);
+    } catch (const std::exception&) {
+      return invalid("page_token", "not a token this server issued");
+    }
+    std::memcpy(&q.after_key, &bits, sizeof bits);
+  }
+  q.limit = page_size + 1;
+  auto rows = catalogue_.query(q);
+  const bool more = static_cast<int>(rows.size()) > page_size;
+  if (more) rows.resize(static_cast<std::size_t>(page_size));
+  for (const auto& row : rows) {
+    auto* out = resp->add_jobs();
+    fill_job(row.job, out->mutable_job());
+    fill_groups(row.groups, out->mutable_groups());
+    if (row.summary) fill_summary(row.job.id, *row.summary, out->mutable_summary());
+  }
+  if (more) {
+    uint64_t bits = 0;
+    std::memcpy(&bits, &rows.back().sort_key, sizeof bits);
+    std::ostringstream key;
+    key << std::hex << bits << "," << std::dec << rows.back().job.seq;
+    resp->set_next_page_token(make_page_token(key.str(), fingerprint));
   }
   return Status::OK;
 }

@@ -10,6 +10,7 @@
 
 #include "server/auth.hpp"
 #include "server/catalogue.hpp"
+#include "server/executor.hpp"
 #include "server/job_events.hpp"
 #include "server/job_runner.hpp"
 #include "server/scheduler.hpp"
@@ -27,7 +28,7 @@ struct ServiceConfig {
 
 class SimulationService final : public v1::SimulationService::Service {
  public:
-  SimulationService(ServiceConfig config, Catalogue& catalogue, Scheduler& scheduler,
+  SimulationService(ServiceConfig config, Catalogue& catalogue, Executor& scheduler,
                     JobEvents& events, const JobRunner& runner, const Authenticator& auth);
 
   grpc::Status SubmitJob(grpc::ServerContext* ctx, const v1::SubmitJobRequest* req,
@@ -50,6 +51,18 @@ class SimulationService final : public v1::SimulationService::Service {
                         v1::Modes* resp) override;
   grpc::Status GetField(grpc::ServerContext* ctx, const v1::GetFieldRequest* req,
                         grpc::ServerWriter<v1::FieldChunk>* writer) override;
+  grpc::Status SubmitGrid(grpc::ServerContext* ctx, const v1::SubmitGridRequest* req,
+                          v1::Grid* resp) override;
+  grpc::Status GetGrid(grpc::ServerContext* ctx, const v1::GetGridRequest* req,
+                       v1::Grid* resp) override;
+  grpc::Status ListGrids(grpc::ServerContext* ctx, const v1::ListGridsRequest* req,
+                         v1::ListGridsResponse* resp) override;
+  grpc::Status CancelGrid(grpc::ServerContext* ctx, const v1::CancelGridRequest* req,
+                          v1::Grid* resp) override;
+  grpc::Status GetGridReduction(grpc::ServerContext* ctx, const v1::GetGridReductionRequest* req,
+                                v1::GridReduction* resp) override;
+  grpc::Status QueryJobs(grpc::ServerContext* ctx, const v1::QueryJobsRequest* req,
+                         v1::QueryJobsResponse* resp) override;
 
   int active_streams() const { return active_streams_.load(); }
 
@@ -66,6 +79,13 @@ class SimulationService final : public v1::SimulationService::Service {
   grpc::Status modes(const v1::GetModesRequest& req, v1::Modes* resp);
   grpc::Status field(grpc::ServerContext* ctx, const v1::GetFieldRequest& req,
                      grpc::ServerWriter<v1::FieldChunk>* writer);
+  grpc::Status submit_grid(grpc::ServerContext* ctx, const v1::SubmitGridRequest& req,
+                           v1::Grid* resp);
+  grpc::Status cancel_grid(const std::string& id, v1::Grid* resp);
+  grpc::Status grid_reduction(const v1::GetGridReductionRequest& req, v1::GridReduction* resp);
+  grpc::Status query(const v1::QueryJobsRequest& req, v1::QueryJobsResponse* resp);
+  // The grid with its live counts, progress and derived state.
+  void fill_grid(const GridRecord& record, v1::Grid* grid) const;
 
   // Job state with the live progress of a running job overlaid.
   void fill_job(const JobRecord& record, v1::Job* job) const;
@@ -77,7 +97,7 @@ class SimulationService final : public v1::SimulationService::Service {
 
   ServiceConfig config_;
   Catalogue& catalogue_;
-  Scheduler& scheduler_;
+  Executor& scheduler_;  // local or slurm (server/executor.hpp)
   JobEvents& events_;
   const JobRunner& runner_;
   const Authenticator& auth_;

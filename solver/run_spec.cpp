@@ -38,6 +38,19 @@ std::string fmt(double v) {
   return s.str();
 }
 
+// Material, viscosity and load of a normalized spec.
+void set_parameters(const v1::RunSpec& s, Problem& p) {
+  const auto& m = s.material();
+  p.material = {m.density(), m.bulk_modulus(), m.shear_modulus(), m.tait_gamma()};
+  p.viscosity = {s.viscosity().c1(), s.viscosity().c2(), true};
+  const auto& l = s.load();
+  PulseShape shape = PulseShape::kSquare;
+  if (l.shape() == v1::GAUSSIAN) shape = PulseShape::kGaussian;
+  if (l.shape() == v1::LINEAR) shape = PulseShape::kLinear;
+  if (l.shape() == v1::QUADRATIC) shape = PulseShape::kQuadratic;
+  p.load = {shape, l.pressure(), l.duration()};
+}
+
 }  // namespace
 
 v1::RunSpec parse_spec_json(const std::string& json) {
@@ -212,16 +225,17 @@ Problem make_problem(const v1::RunSpec& s, const SpecLimits& limits) {
           "geometry.target_elements",
           "the mesh has " + std::to_string(p.mesh.element_count()) + " elements, more than " +
               std::to_string(limits.max_elements));
-  const auto& m = s.material();
-  p.material = {m.density(), m.bulk_modulus(), m.shear_modulus(), m.tait_gamma()};
-  p.viscosity = {s.viscosity().c1(), s.viscosity().c2(), true};
-  const auto& l = s.load();
-  PulseShape shape = PulseShape::kSquare;
-  if (l.shape() == v1::GAUSSIAN) shape = PulseShape::kGaussian;
-  if (l.shape() == v1::LINEAR) shape = PulseShape::kLinear;
-  if (l.shape() == v1::QUADRATIC) shape = PulseShape::kQuadratic;
-  p.load = {shape, l.pressure(), l.duration()};
+  set_parameters(s, p);
   return p;
+}
+
+NondimensionalGroups spec_groups(const v1::RunSpec& s) {
+  Problem p;
+  set_parameters(s, p);
+  double r0 = std::nan("");
+  if (s.geometry().has_disk()) r0 = s.geometry().disk().radius();
+  if (s.geometry().has_rounded_square()) r0 = 0.5 * s.geometry().rounded_square().side();
+  return nondimensional_groups(p.material, p.viscosity, p.load, r0);
 }
 
 SolverOptions make_options(const v1::RunSpec& s) {

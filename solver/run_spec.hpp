@@ -6,6 +6,7 @@
 #include <string>
 
 #include "model.hpp"
+#include "run_summary.hpp"
 #include "softshock/v1/spec.pb.h"
 
 namespace softshock {
@@ -50,6 +51,10 @@ std::string spec_to_json(const v1::RunSpec& spec);
 // SpecError("geometry.mesh_file", ...) if a mesh file cannot be read, and
 // SpecError("geometry.target_elements", ...) if the mesh exceeds limits.max_elements.
 Problem make_problem(const v1::RunSpec& spec, const SpecLimits& limits = {});
+// The nondimensional groups of a normalized spec without meshing: R0 is the disk's radius or
+// half the rounded square's side. A mesh_file's R0 is known only once meshed: its tbar_pulse
+// and time_scale_s are NaN.
+NondimensionalGroups spec_groups(const v1::RunSpec& spec);
 SolverOptions make_options(const v1::RunSpec& spec);
 
 }  // namespace softshock

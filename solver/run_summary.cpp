@@ -27,18 +27,23 @@ std::string number(double v) {
 
 }  // namespace
 
-NondimensionalGroups nondimensional_groups(const Problem& p) {
-  const double r0 = polar_frame(p).reference_radius_m;
-  const double c0 = std::sqrt(p.material.bulk_modulus_Pa / p.material.density_kg_m3);
+NondimensionalGroups nondimensional_groups(const Material& material,
+                                           const ArtificialViscosity& viscosity,
+                                           const PressurePulse& load, double r0) {
+  const double c0 = std::sqrt(material.bulk_modulus_Pa / material.density_kg_m3);
   NondimensionalGroups g;
   g.time_scale_s = r0 / c0;
-  g.pbar = p.load.pressure_Pa / p.material.bulk_modulus_Pa;
-  g.tbar_pulse = p.load.duration_s / g.time_scale_s;
-  g.mubar = p.material.shear_modulus_Pa / p.material.bulk_modulus_Pa;
-  g.gamma = p.material.tait_gamma;
-  g.c1 = p.viscosity.c1;
-  g.c2 = p.viscosity.c2;
+  g.pbar = load.pressure_Pa / material.bulk_modulus_Pa;
+  g.tbar_pulse = load.duration_s / g.time_scale_s;
+  g.mubar = material.shear_modulus_Pa / material.bulk_modulus_Pa;
+  g.gamma = material.tait_gamma;
+  g.c1 = viscosity.c1;
+  g.c2 = viscosity.c2;
   return g;
+}
+
+NondimensionalGroups nondimensional_groups(const Problem& p) {
+  return nondimensional_groups(p.material, p.viscosity, p.load, polar_frame(p).reference_radius_m);
 }
 
 RunSummary summarize(const Problem& problem, const RunResult& r) {

@@ -15,6 +15,10 @@ struct NondimensionalGroups {
   double time_scale_s = 0;  // R0 / sqrt(kappa / rho0)
 };
 NondimensionalGroups nondimensional_groups(const Problem& problem);
+// The same from the parameters and the reference radius R0 (m).
+NondimensionalGroups nondimensional_groups(const Material& material,
+                                           const ArtificialViscosity& viscosity,
+                                           const PressurePulse& load, double r0_m);
 
 struct RunSummary {
   std::size_t elements = 0, nodes = 0;

@@ -29,6 +29,26 @@ std::vector<std::pair<std::string, const std::vector<double>*>> History::columns
           {"dt", &dt}};
 }
 
+std::string series_units(std::string_view name) {
+  static constexpr std::pair<std::string_view, std::string_view> kUnits[] = {
+      {"time", "s"},
+      {"kinetic_energy", "J/m"},
+      {"elastic_energy", "J/m"},
+      {"dissipated_energy", "J/m"},
+      {"external_work", "J/m"},
+      {"abar", "1"},
+      {"center_mean_stress", "Pa"},
+      {"rim_mean_radial_displacement", "m"},
+      {"rim_mean_radial_velocity", "m/s"},
+      {"rim_mean_radial_acceleration", "m/s^2"},
+      {"rim_min_hoop_stress", "Pa"},
+      {"dt", "s"},
+  };
+  for (const auto& [n, u] : kUnits)
+    if (n == name) return std::string(u);
+  return {};
+}
+
 namespace {
 
 void check_problem(const Problem& p, const SolverOptions& o) {

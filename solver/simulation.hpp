@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <functional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "model.hpp"
@@ -33,6 +34,9 @@ struct History {
   // Names and columns of the scalar series, in a fixed order (for writers and clients).
   std::vector<std::pair<std::string, const std::vector<double>*>> columns() const;
 };
+
+// SI units of a History series by name ("J/m", "Pa", "1" for A-bar, ...); empty if unknown.
+std::string series_units(std::string_view name);
 
 // Fields at one instant: nodal vectors and per-element scalars.
 struct FieldFrame {

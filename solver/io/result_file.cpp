@@ -65,29 +65,6 @@ constexpr std::array<FieldSpec, 7> kFields{{
     {"von_mises", false, &FieldFrame::von_mises, "Pa"},
 }};
 
-// Units of the History series. History::columns() owns the names and their order; only the
-// units live here (History carries them as comments). A name missing here is stored with an
-// empty `units` string, and test_result_file fails, so a new column cannot slip through.
-std::string series_units(std::string_view name) {
-  static constexpr std::pair<std::string_view, std::string_view> kUnits[] = {
-      {"time", "s"},
-      {"kinetic_energy", "J/m"},
-      {"elastic_energy", "J/m"},
-      {"dissipated_energy", "J/m"},
-      {"external_work", "J/m"},
-      {"abar", "1"},
-      {"center_mean_stress", "Pa"},
-      {"rim_mean_radial_displacement", "m"},
-      {"rim_mean_radial_velocity", "m/s"},
-      {"rim_mean_radial_acceleration", "m/s^2"},
-      {"rim_min_hoop_stress", "Pa"},
-      {"dt", "s"},
-  };
-  for (const auto& [n, u] : kUnits) {
-    if (n == name) return std::string(u);
-  }
-  return {};
-}
 
 std::string frame_group_name(std::size_t k) {
   char buf[32];
@@ -442,6 +419,27 @@ Hid file_access_plist(const std::string& path) {
 }
 
 }  // namespace
+
+std::string link_result_files(const std::string& source_h5, const std::string& out_dir) {
+  const fs::path src(source_h5);
+  const fs::path dir(out_dir);
+  fs::create_directories(dir);
+  for (const char* ext : {".h5", ".xdmf"}) {
+    const fs::path from = fs::path(src).replace_extension(ext);
+    const fs::path to = dir / (std::string("result") + ext);
+    std::error_code ec;
+    if (!fs::exists(from, ec)) {
+      if (std::string(ext) == ".h5") throw std::runtime_error("no result file " + from.string());
+      continue;  // the XDMF companion is a convenience
+    }
+    fs::remove(to, ec);
+    fs::create_hard_link(from, to, ec);
+    if (ec) fs::copy_file(from, to, fs::copy_options::overwrite_existing);
+    fsync_path(to, false);
+  }
+  fsync_path(dir, true);
+  return (dir / "result.h5").string();
+}
 
 // =================================================================================================
 // ResultWriter

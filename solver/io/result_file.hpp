@@ -38,6 +38,12 @@ class ResultWriter {
 };
 
 // Read side, for the daemon's queries and for tests.
+// Gives out_dir the finished result files of another run (result.h5 and result.xdmf next to
+// source_h5): hard links, since finished files never change and a link survives the source's
+// deletion; copies where linking is impossible (another filesystem). Durable on return.
+// Returns out_dir/result.h5. Throws std::runtime_error.
+std::string link_result_files(const std::string& source_h5, const std::string& out_dir);
+
 struct ResultInfo {
   bool complete = false;
   std::string error, spec_json, summary_json, solver_version;

@@ -5,7 +5,8 @@ needs only numpy and matplotlib, so importing the package itself stays cheap and
 PNG helper works without the stubs.
 """
 
-__all__ = ["Client", "FieldData", "SeriesDict", "SoftshockError", "SpecError", "state_name"]
+__all__ = ["Client", "FieldData", "GridReduction", "SeriesDict", "SoftshockError", "SpecError",
+           "parse_where", "state_name"]
 
 
 def __getattr__(name):

@@ -23,7 +23,7 @@ import os
 import time
 import uuid
 from dataclasses import dataclass, field as dc_field
-from typing import Dict, Iterator, List, Optional, Tuple, Union
+from typing import Dict, Iterator, List, Mapping, Optional, Sequence, Tuple, Union
 
 import grpc
 import numpy as np
@@ -71,6 +71,68 @@ class SeriesDict(dict):
     def __init__(self, *args, units: Optional[Dict[str, str]] = None, **kwargs):
         super().__init__(*args, **kwargs)
         self.units = dict(units or {})
+
+
+@dataclass
+class GridReduction:
+    """One scalar per grid point as an N-D array. `values[i, j]` belongs to the point with
+    coordinates (axis_values[0][i], axis_values[1][j]); NaN where the point has no result.
+    `job_ids` and `states` have the same shape."""
+
+    grid_id: str
+    quantity: str
+    units: str
+    tbar: float
+    axis_names: List[str]
+    axis_values: List[np.ndarray]
+    values: np.ndarray
+    job_ids: np.ndarray
+    states: np.ndarray
+
+    def __array__(self, dtype=None):
+        return self.values if dtype is None else self.values.astype(dtype)
+
+
+# QueryJobs filters from text: "pbar>=0.5", "gamma>6", "pbar=0.5..1.5".
+_WHERE_OPS = (">=", "<=", "==", ">", "<", "=")
+
+
+def parse_where(text: str):
+    """A RangeFilter from "NAME OP VALUE" (OP one of < <= > >= =) or "NAME=A..B"."""
+    for op in _WHERE_OPS:
+        at = text.find(op)
+        if at > 0:
+            name, value = text[:at].strip(), text[at + len(op):].strip()
+            f = service_pb2.RangeFilter(name=name)
+            if op in ("=", "=="):
+                if ".." in value:
+                    lo, hi = value.split("..", 1)
+                    f.ge, f.le = float(lo), float(hi)
+                else:
+                    v = float(value)
+                    f.ge, f.le = v - 1e-9 * abs(v), v + 1e-9 * abs(v)
+            else:
+                setattr(f, {">": "gt", ">=": "ge", "<": "lt", "<=": "le"}[op], float(value))
+            return f
+    raise ValueError(f"not a filter: {text!r} (expected NAME OP VALUE, e.g. 'gamma>6')")
+
+
+def _grid_axis(axis) -> "service_pb2.GridAxis":
+    """A GridAxis from a message or a dict {"name", "values" | "linspace" | "geomspace"};
+    a span may be a (start, stop, num) tuple or a dict."""
+    if isinstance(axis, service_pb2.GridAxis):
+        return axis
+    out = service_pb2.GridAxis(name=axis["name"])
+    if "values" in axis:
+        out.values.extend(float(v) for v in axis["values"])
+    for kind in ("linspace", "geomspace"):
+        if kind in axis:
+            span = axis[kind]
+            if not isinstance(span, Mapping):
+                span = dict(zip(("start", "stop", "num"), span))
+            getattr(out, kind).CopyFrom(service_pb2.Span(
+                start=float(span["start"]), stop=float(span["stop"]), num=int(span["num"])))
+    return out
 
 
 @dataclass
@@ -192,11 +254,12 @@ class Client:
 
     # -- jobs ----------------------------------------------------------------------------------
     def submit(self, spec, labels: Optional[Dict[str, str]] = None, wait: bool = False,
-               priority: int = 0, request_id: Optional[str] = None):
-        """Submits a run; returns the Job (the final one when wait=True)."""
+               priority: int = 0, request_id: Optional[str] = None, reuse_result: bool = False):
+        """Submits a run; returns the Job (the final one when wait=True). With reuse_result, an
+        identical SUCCEEDED run's result is reused (Job.reused_from) instead of running."""
         request = service_pb2.SubmitJobRequest(
             spec=load_spec(spec), labels=dict(labels or {}), priority=priority,
-            request_id=request_id or str(uuid.uuid4()))
+            request_id=request_id or str(uuid.uuid4()), reuse_result=reuse_result)
         job = self._call(self._stub.SubmitJob, request)
         if wait:
             return self.wait(job.id)
@@ -355,3 +418,101 @@ class Client:
         return FieldData(values=values, extent=extent, name=header.name, units=header.units,
                          time=header.time, frame=header.frame, location=header.location,
                          every=max(1, header.every), header=header)
+
+    # -- grids -----------------------------------------------------------------------------------
+    def submit_grid(self, base_spec=None, axes: Sequence = (),
+                    labels: Optional[Dict[str, str]] = None, priority: int = 0,
+                    request_id: Optional[str] = None, recompute: bool = False,
+                    wait: bool = False, grid_file=None):
+        """Submits a grid: a base spec (as for submit) and 1-3 axes (dicts or GridAxis), or a
+        grid file (JSON of SubmitGridRequest, as `softshock grid submit` reads). Returns the
+        Grid (the final one when wait=True)."""
+        if grid_file is not None:
+            with open(grid_file, encoding="utf-8") as f:
+                request = json_format.Parse(f.read(), service_pb2.SubmitGridRequest())
+        else:
+            request = service_pb2.SubmitGridRequest(base_spec=load_spec(base_spec or {}))
+            request.axes.extend(_grid_axis(a) for a in axes)
+        request.labels.update(labels or {})
+        request.priority = priority or request.priority
+        request.recompute = recompute or request.recompute
+        request.request_id = request_id or request.request_id or str(uuid.uuid4())
+        grid = self._call(self._stub.SubmitGrid, request)
+        return self.wait_grid(grid.id) if wait else grid
+
+    def grid(self, grid_id: str):
+        return self._call(self._stub.GetGrid, service_pb2.GetGridRequest(id=grid_id))
+
+    def list_grids(self) -> List:
+        request, grids = service_pb2.ListGridsRequest(page_size=1000), []
+        while True:
+            page = self._call(self._stub.ListGrids, request)
+            grids.extend(page.grids)
+            if not page.next_page_token:
+                return grids
+            request.page_token = page.next_page_token
+
+    def cancel_grid(self, grid_id: str):
+        return self._call(self._stub.CancelGrid, service_pb2.CancelGridRequest(id=grid_id))
+
+    def wait_grid(self, grid_id: str, timeout: Optional[float] = None, poll: float = 0.5):
+        """Polls until every point of the grid finished; returns the final Grid."""
+        start = time.monotonic()
+        while True:
+            grid = self.grid(grid_id)
+            if grid.state in TERMINAL_STATES:
+                return grid
+            if timeout is not None and time.monotonic() - start > timeout:
+                raise TimeoutError(f"grid {grid_id} still {state_name(grid)} after {timeout} s")
+            time.sleep(poll)
+
+    def grid_reduction(self, grid_id: str, quantity: str = "max_abar_first_cycle",
+                       tbar: Optional[float] = None) -> GridReduction:
+        """One scalar per point as an N-D numpy array with its axes (see GridReduction)."""
+        request = service_pb2.GetGridReductionRequest(id=grid_id, quantity=quantity)
+        if tbar is not None:
+            request.tbar = tbar
+        r = self._call(self._stub.GetGridReduction, request)
+        shape = tuple(r.shape)
+        return GridReduction(
+            grid_id=r.grid_id, quantity=r.quantity, units=r.units, tbar=r.tbar,
+            axis_names=[a.name for a in r.axes],
+            axis_values=[np.asarray(a.values, dtype=float) for a in r.axes],
+            values=np.asarray(r.values, dtype=float).reshape(shape),
+            job_ids=np.asarray(list(r.job_ids), dtype=object).reshape(shape),
+            states=np.asarray([state_name(s) for s in r.states], dtype=object).reshape(shape))
+
+    # -- result database -------------------------------------------------------------------------
+    def query(self, where: Sequence = (), state: Optional[Union[str, int]] = None,
+              grid_id: Optional[str] = None, order_by: Optional[str] = None,
+              limit: Optional[int] = None) -> List[dict]:
+        """Catalogued jobs whose groups and summary figures pass every filter ("pbar>=0.5",
+        "gamma>6", "max_abar_first_cycle>0.01", "pbar=0.5..1.5" or RangeFilter messages),
+        sorted by `order_by` ("max_abar desc"); answered from the catalogue alone. Each row is
+        a dict: id, state, grid_id, grid_index, reused_from, the groups by name (NaN if not
+        known) and "summary" (a dict, or None for unfinished jobs)."""
+        request = service_pb2.QueryJobsRequest(grid_id=grid_id or "", order_by=order_by or "")
+        request.filters.extend(w if isinstance(w, service_pb2.RangeFilter) else parse_where(w)
+                               for w in where)
+        if state is not None:
+            request.state = service_pb2.JobState.Value(state) if isinstance(state, str) else state
+        rows = []
+        while True:
+            request.page_size = 1000 if limit is None else max(1, min(1000, limit - len(rows)))
+            page = self._call(self._stub.QueryJobs, request)
+            for q in page.jobs:
+                row = {"id": q.job.id, "state": state_name(q.job), "grid_id": q.job.grid_id,
+                       "grid_index": q.job.grid_index, "reused_from": q.job.reused_from}
+                row.update({k: v for k, v in message_to_dict(q.groups).items()})
+                row["summary"] = message_to_dict(q.summary) if q.HasField("summary") else None
+                rows.append(row)
+            if not page.next_page_token or (limit is not None and len(rows) >= limit):
+                return rows if limit is None else rows[:limit]
+            request.page_token = page.next_page_token
+
+    def abar_series(self, job_ids: Sequence[str]) -> Tuple[List[SeriesDict], Optional[float]]:
+        """Ā(t) of several jobs and their common time scale R0/c0 (None when they differ), for
+        plots.plot_abar."""
+        series = [self.series(j, names=["abar"]) for j in job_ids]
+        scales = {self.summary(j)["groups"]["time_scale"] for j in job_ids}
+        return series, (scales.pop() if len(scales) == 1 else None)

@@ -1,0 +1,63 @@
+// The slurm executor's pure parts: Slurm state mapping, sbatch output, and the summary JSON
+// read back from a cluster run (the integration test runs the rest against a real Slurm).
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "server/job_runner.hpp"
+#include "server/slurm_executor.hpp"
+
+using namespace softshock;
+using namespace softshock::server;
+
+TEST(SlurmStates, MapOntoOurs) {
+  using K = SlurmOutcome::Kind;
+  EXPECT_EQ(map_slurm_state("PENDING").kind, K::kWaiting);
+  EXPECT_EQ(map_slurm_state("REQUEUED").kind, K::kWaiting);
+  EXPECT_EQ(map_slurm_state("RUNNING").kind, K::kRunning);
+  EXPECT_EQ(map_slurm_state("COMPLETING").kind, K::kRunning);
+  const auto done = map_slurm_state("COMPLETED");
+  EXPECT_EQ(done.kind, K::kTerminal);
+  EXPECT_EQ(done.state, JobState::kSucceeded);
+  const auto cancelled = map_slurm_state("CANCELLED by 0");  // sacct's form
+  EXPECT_EQ(cancelled.state, JobState::kCancelled);
+  for (const char* s : {"FAILED", "TIMEOUT", "OUT_OF_MEMORY", "NODE_FAIL"}) {
+    const auto o = map_slurm_state(s);
+    EXPECT_EQ(o.kind, K::kTerminal) << s;
+    EXPECT_EQ(o.state, JobState::kFailed) << s;
+    EXPECT_EQ(o.reason, std::string("SLURM_") + s);
+  }
+  EXPECT_EQ(map_slurm_state("SOMETHING_NEW").kind, K::kUnknown);
+}
+
+TEST(SlurmStates, SbatchParsableOutput) {
+  EXPECT_EQ(parse_sbatch_job_id("123\n"), "123");
+  EXPECT_EQ(parse_sbatch_job_id("456;cluster\n"), "456");
+  EXPECT_EQ(parse_sbatch_job_id("sbatch: error: Batch job submission failed\n"), "");
+  EXPECT_EQ(parse_sbatch_job_id(""), "");
+}
+
+TEST(SlurmStates, SummaryJsonRoundTrip) {
+  RunSummary s;
+  s.status = "failed";
+  s.error = "element \"inversion\"";
+  s.elements = 412;
+  s.nodes = 230;
+  s.steps = 987;
+  s.end_time_s = 2e-8;
+  s.groups.pbar = 0.5;
+  s.groups.tbar_pulse = NAN;  // written as null
+  s.max_abar = 0.0123456789;
+  s.dominant_mode_end = 6;
+  s.rim_reflections_s = {1e-9, 3e-9};
+  const RunSummary r = parse_summary_json(summary_to_json(s));
+  EXPECT_EQ(r.status, s.status);
+  EXPECT_EQ(r.error, s.error);
+  EXPECT_EQ(r.elements, s.elements);
+  EXPECT_EQ(r.steps, s.steps);
+  EXPECT_DOUBLE_EQ(r.groups.pbar, 0.5);
+  EXPECT_TRUE(std::isnan(r.groups.tbar_pulse));
+  EXPECT_NEAR(r.max_abar, s.max_abar, 1e-12);
+  EXPECT_EQ(r.dominant_mode_end, 6);
+  EXPECT_EQ(r.rim_reflections_s.size(), 2u);
+}
