@@ -65,7 +65,6 @@ constexpr std::array<FieldSpec, 7> kFields{{
     {"von_mises", false, &FieldFrame::von_mises, "Pa"},
 }};
 
-
 std::string frame_group_name(std::size_t k) {
   char buf[32];
   std::snprintf(buf, sizeof buf, "frame_%05zu", k);
