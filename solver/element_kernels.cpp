@@ -31,7 +31,7 @@ void ElementState::reset_to_reference() {
 }
 
 // Compiled for AVX2 and for the baseline ISA; the loader picks one at start-up.
-__attribute__((target_clones("avx2", "default"))) void compute_element_forces(
+__attribute__((target_clones("avx512f", "avx2", "default"))) void compute_element_forces(
     const ElementGeometry& g, const double* x, const double* y, const KernelParams& p,
     std::size_t begin, std::size_t end, ElementState& s, KernelTotals& totals, double* node_fx,
     double* node_fy) {
