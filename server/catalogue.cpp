@@ -473,26 +473,24 @@ void load_labels(Connection& c, JobRecord& j) {
   while (s.step()) j.labels.emplace(s.text(0), s.text(1));
 }
 
-std::optional<JobRecord> get_job(Connection& c, const std::string& id) {
+// The job whose unique `column` (id or request_id) equals `value`, with its labels.
+std::optional<JobRecord> get_job_by(Connection& c, const char* column, const std::string& value) {
   std::optional<JobRecord> out;
   {
-    auto s = c.prepare("SELECT " + job_columns() + " FROM jobs WHERE id = ?");
-    s.bind(1, id);
+    auto s = c.prepare("SELECT " + job_columns() + " FROM jobs WHERE " + column + " = ?");
+    s.bind(1, value);
     if (s.step()) out = read_job(s);
   }
   if (out) load_labels(c, *out);
   return out;
 }
 
+std::optional<JobRecord> get_job(Connection& c, const std::string& id) {
+  return get_job_by(c, "id", id);
+}
+
 std::optional<JobRecord> get_by_request_id(Connection& c, const std::string& request_id) {
-  std::optional<JobRecord> out;
-  {
-    auto s = c.prepare("SELECT " + job_columns() + " FROM jobs WHERE request_id = ?");
-    s.bind(1, request_id);
-    if (s.step()) out = read_job(s);
-  }
-  if (out) load_labels(c, *out);
-  return out;
+  return get_job_by(c, "request_id", request_id);
 }
 
 // Copies a job's groups and summary figures from its summary row onto its jobs row (the
