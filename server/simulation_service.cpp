@@ -164,6 +164,7 @@ const std::map<std::string, FieldKind>& field_kinds() {
       {"radial_stress", {false, 1, "Pa"}},
       {"hoop_stress", {false, 1, "Pa"}},
       {"von_mises", {false, 1, "Pa"}},
+      {"aspect_ratio", {false, 1, "1"}},
       {"displacement", {true, 2, "m"}},
       {"velocity", {true, 2, "m/s"}},
   };

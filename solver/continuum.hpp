@@ -80,12 +80,13 @@ inline double smallest_altitude_sq(double e1x, double e1y, double e2x, double e2
   return twice_area * twice_area / lmax;
 }
 
-// Viscous first Piola-Kirchhoff stress P_v = 2 J nu d_dev F^-T = 2 nu d_dev cof(F), with the
-// lagged velocity gradient l = ((F - F_prev) / dt) F_prev^-1, d = sym(l) and the 3x3
-// deviator (d_zz = 0, so d_dev = d - tr(d)/3 I). In-plane block only: the zz row gives no
-// nodal force in plane strain.
+// Viscous first Piola-Kirchhoff stress P_v = J sigma_v F^-T = sigma_v cof(F), with the Cauchy
+// viscous stress sigma_v = 2 nu d_dev + zeta tr(d) I, the lagged velocity gradient
+// l = ((F - F_prev) / dt) F_prev^-1, d = sym(l) and the 3x3 deviator (d_zz = 0, so
+// d_dev = d - tr(d)/3 I): nu a shear, zeta a bulk viscosity (Pa s). In-plane block only: the zz
+// row gives no nodal force in plane strain (sigma_v,zz = zeta tr d - 2 nu tr d / 3).
 inline Mat2 viscous_piola(const Mat2& f, const Mat2& f_prev, const Mat2& cof, double nu,
-                          double dt) {
+                          double zeta, double dt) {
   const double jp = det(f_prev);
   const double inv = 1.0 / (jp * dt);
   // F_prev^-1 = cof(F_prev)^T / J_prev
@@ -96,19 +97,56 @@ inline Mat2 viscous_piola(const Mat2& f, const Mat2& f_prev, const Mat2& cof, do
   const double l01 = (df0 * pi01 + df1 * pi11) * inv;
   const double l10 = (df2 * pi00 + df3 * pi10) * inv;
   const double l11 = (df2 * pi01 + df3 * pi11) * inv;
-  const double third_trace = (l00 + l11) / 3.0;
-  const double d00 = 2.0 * nu * (l00 - third_trace);
-  const double d11 = 2.0 * nu * (l11 - third_trace);
+  const double trace = l00 + l11;
+  const double third_trace = trace / 3.0;
+  const double d00 = 2.0 * nu * (l00 - third_trace) + zeta * trace;
+  const double d11 = 2.0 * nu * (l11 - third_trace) + zeta * trace;
   const double d01 = nu * (l01 + l10);
   return {d00 * cof[0] + d01 * cof[2], d00 * cof[1] + d01 * cof[3], d01 * cof[0] + d11 * cof[2],
           d01 * cof[1] + d11 * cof[3]};
 }
 
-// Artificial viscosity nu = 3/4 (h rho0 / J) (c2 a - c1 h ln(J/J_prev) / dt), applied only
-// while compressing (the caller checks J < J_prev, so the log term is positive).
+// Out-of-plane Cauchy viscous stress sigma_v,zz = (zeta - 2 nu / 3) tr(d), from the in-plane
+// Cauchy components it comes with: sigma_xx + sigma_yy = 2 nu tr d / 3 + 2 zeta tr d.
+inline double viscous_zz(double nu, double zeta, double in_plane_trace) {
+  const double denominator = 2.0 * nu / 3.0 + 2.0 * zeta;
+  return denominator > 0.0 ? (zeta - 2.0 * nu / 3.0) * in_plane_trace / denominator : 0.0;
+}
+
+// Artificial viscosity nu = 3/4 (h rho0 / J) a (c2 ramp(z) + c1 z+), with the compression
+// measure z = -h ln(J / J_prev) / (a dt) (the velocity jump across the element over the sound
+// speed) and ramp(z) = min(z+ / z_ramp, 1): continuous in z, so near-isochoric motion (z ~ 0,
+// where round-off decides the sign) gets almost none. ramp_inv = 1 / z_ramp; a huge ramp_inv
+// gives the thesis's switch (on while compressing). Where z > z_ramp this is the thesis's
+// 3/4 (h rho0 / J)(c2 a - c1 h ln(J / J_prev) / dt).
 inline double artificial_viscosity(double h, double rho0, double j, double c1, double c2,
-                                   double acoustic_speed, double log_j_ratio, double dt) {
-  return 0.75 * h * rho0 / j * (c2 * acoustic_speed - c1 * h * log_j_ratio / dt);
+                                   double acoustic_speed, double z, double ramp_inv) {
+  const double z_pos = z > 0.0 ? z : 0.0;
+  const double r = z_pos * ramp_inv;
+  const double ramp = r < 1.0 ? r : 1.0;
+  return 0.75 * h * rho0 / j * acoustic_speed * (c2 * ramp + c1 * z_pos);
+}
+
+// Squared stable step of one element with viscosity: the central-difference limit for a damped
+// oscillator, dt = h / (q + sqrt(q^2 + c^2)), with the viscous speed q = nu_l / (rho h),
+// rho = rho0 / J, and the longitudinal viscosity nu_l = 4/3 nu + zeta of a shear viscosity nu
+// (2 nu d_dev) and a bulk viscosity zeta. nu_l = 0 gives h^2 / c^2.
+inline double stable_step_sq(double h_sq, double c_sq, double longitudinal_viscosity, double rho0,
+                             double j) {
+  const double h = std::sqrt(h_sq);
+  const double q = longitudinal_viscosity * j / (rho0 * h);
+  const double d = q + std::sqrt(q * q + c_sq);
+  return h_sq / (d * d);
+}
+
+// Aspect ratio of the current triangle: longest edge^2 / (2 area) (equilateral: 2/sqrt(3)).
+inline double aspect_ratio(double e1x, double e1y, double e2x, double e2y) {
+  const double twice_area = e1x * e2y - e1y * e2x;
+  const double l1 = e1x * e1x + e1y * e1y;
+  const double l2 = e2x * e2x + e2y * e2y;
+  const double l3 = (e2x - e1x) * (e2x - e1x) + (e2y - e1y) * (e2y - e1y);
+  const double l12 = l1 > l2 ? l1 : l2;
+  return (l12 > l3 ? l12 : l3) / twice_area;
 }
 
 }  // namespace softshock::continuum

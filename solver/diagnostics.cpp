@@ -7,6 +7,7 @@
 #include <unordered_set>
 
 #include "continuum.hpp"
+#include "nodal_pressure.hpp"
 
 namespace softshock {
 namespace {
@@ -77,6 +78,12 @@ Diagnostics::Diagnostics(const Problem& problem, const ElementGeometry& geometry
   }
   if (center_elements_.empty() && geometry.size() > 0) center_elements_.push_back(nearest_element);
 
+  on_rim_node_.assign(mesh.node_count(), 0);
+  for (int32_t i : rim_nodes_) on_rim_node_[i] = 1;
+  if (problem.element.formulation == ElementFormulation::kAverageNodalPressure) {
+    nodal_area0_ = reference_nodal_areas(geometry, mesh.node_count());
+  }
+
   std::unordered_set<int64_t> rim_edges;
   for (std::size_t k = 0; k < nr; ++k)
     rim_edges.insert(edge_key(rim_nodes_[k], rim_nodes_[(k + 1) % nr]));
@@ -88,7 +95,47 @@ Diagnostics::Diagnostics(const Problem& problem, const ElementGeometry& geometry
   }
 }
 
+std::vector<double> Diagnostics::aspect_ratios(const NodalView& nodes) const {
+  const ElementGeometry& g = geometry_;
+  std::vector<double> out(g.size());
+  for (std::size_t e = 0; e < g.size(); ++e) {
+    const int32_t a = g.node0[e], b = g.node1[e], c = g.node2[e];
+    out[e] = continuum::aspect_ratio(nodes.x[b] - nodes.x[a], nodes.y[b] - nodes.y[a],
+                                     nodes.x[c] - nodes.x[a], nodes.y[c] - nodes.y[a]);
+  }
+  return out;
+}
+
+Diagnostics::Volumetric Diagnostics::volumetric(const NodalView& nodes) const {
+  namespace cm = continuum;
+  const ElementGeometry& g = geometry_;
+  const Material& mat = problem_.material;
+  const double kappa = mat.bulk_modulus_Pa, n = mat.tait_n();
+  Volumetric out;
+  if (!nodal_area0_.empty()) {
+    const Element& el = problem_.element;
+    NodalPressureState st = nodal_pressure_state(g, nodal_area0_, kappa, n, el.element_weight,
+                                                 el.stabilization, nodes.x, nodes.y);
+    out.element_mean_stress = std::move(st.element_mean_stress);
+    out.stored_energy = st.stored_energy;
+  }
+  const double w_element = nodal_area0_.empty() ? 1.0 : problem_.element.element_weight;
+  for (std::size_t e = 0; e < g.size(); ++e) {
+    const int32_t a = g.node0[e], b = g.node1[e], c = g.node2[e];
+    const cm::Mat2 f = cm::deformation_gradient(
+        nodes.x[b] - nodes.x[a], nodes.y[b] - nodes.y[a], nodes.x[c] - nodes.x[a],
+        nodes.y[c] - nodes.y[a], {g.dm_inv_xx[e], g.dm_inv_xy[e], g.dm_inv_yx[e], g.dm_inv_yy[e]});
+    const double j = cm::det(f);
+    double w = cm::neo_hookean_energy(mat.shear_modulus_Pa, cm::first_invariant(f),
+                                      std::pow(j, -2.0 / 3.0));
+    if (w_element > 0) w += w_element * cm::tait_energy(kappa, n, j, std::pow(j, -n));
+    out.stored_energy += g.area0[e] * w;
+  }
+  return out;
+}
+
 ElementStress Diagnostics::element_stress(const NodalView& nodes, const ElementState& s,
+                                          const std::vector<double>& volumetric_sm,
                                           std::size_t e) const {
   namespace cm = continuum;
   const ElementGeometry& g = geometry_;
@@ -101,7 +148,8 @@ ElementStress Diagnostics::element_stress(const NodalView& nodes, const ElementS
   const double n = mat.tait_n();
   const double j_minus_n = std::pow(j, -n);
   const double j_minus_23 = std::pow(j, -2.0 / 3.0);
-  const double sm = cm::tait_mean_stress(mat.bulk_modulus_Pa, n, j_minus_n);
+  double sm = cm::tait_mean_stress(mat.bulk_modulus_Pa, n, j_minus_n);
+  if (!volumetric_sm.empty()) sm = volumetric_sm[e];  // average nodal pressure
   const double i1 = cm::first_invariant(f);
   // Elastic Cauchy stress: sigma_m I + (mu J^-2/3 / J)(B - I1/3 I), B = F F^T (B_zz = 1).
   const double k = mat.shear_modulus_Pa * j_minus_23 / j;
@@ -110,27 +158,30 @@ ElementStress Diagnostics::element_stress(const NodalView& nodes, const ElementS
   out.xy = k * (f[0] * f[2] + f[1] * f[3]);
   out.yy = sm + k * (f[2] * f[2] + f[3] * f[3] - i1 / 3.0);
   out.zz = sm + k * (1.0 - i1 / 3.0);
-  // Viscous Cauchy stress P_v F^T / J from the last evaluation (traceless in 3D).
+  // Viscous Cauchy stress P_v F^T / J from the last evaluation; its zz part from the shear and
+  // bulk viscosities that made it.
   const double vxx = (s.pv_xx[e] * f[0] + s.pv_xy[e] * f[1]) / j;
   const double vxy = (s.pv_xx[e] * f[2] + s.pv_xy[e] * f[3]) / j;
   const double vyy = (s.pv_yx[e] * f[2] + s.pv_yy[e] * f[3]) / j;
-  out.xx += vxx, out.xy += vxy, out.yy += vyy, out.zz -= vxx + vyy;
+  out.xx += vxx, out.xy += vxy, out.yy += vyy;
+  out.zz += cm::viscous_zz(s.viscosity[e], s.bulk_viscosity[e], vxx + vyy);
   out.j = j;
-  out.stored_energy_density = cm::tait_energy(mat.bulk_modulus_Pa, n, j, j_minus_n) +
-                              cm::neo_hookean_energy(mat.shear_modulus_Pa, i1, j_minus_23);
   return out;
 }
 
 void Diagnostics::sample(const NodalView& nodes, const ElementState& s, double t, double dt,
-                         double dissipated, double external_work, History& h) const {
+                         int64_t dt_element, double dissipated, double external_work,
+                         History& h) const {
   const Mesh& mesh = problem_.mesh;
   const std::size_t nn = mesh.node_count();
   double kinetic = 0;
   for (std::size_t i = 0; i < nn; ++i)
     kinetic += 0.5 * nodes.mass[i] * (nodes.vx[i] * nodes.vx[i] + nodes.vy[i] * nodes.vy[i]);
-  double elastic = 0;
-  for (std::size_t e = 0; e < geometry_.size(); ++e)
-    elastic += geometry_.area0[e] * element_stress(nodes, s, e).stored_energy_density;
+  const Volumetric vol = volumetric(nodes);
+  const double elastic = vol.stored_energy;
+  const std::vector<double>& nodal_sm = vol.element_mean_stress;
+  const std::vector<double> aspect = aspect_ratios(nodes);
+  const double max_aspect = aspect.empty() ? 0.0 : *std::max_element(aspect.begin(), aspect.end());
 
   // Rim: radial displacement, velocity and acceleration in the current polar frame.
   const std::size_t nr = rim_nodes_.size();
@@ -150,8 +201,10 @@ void Diagnostics::sample(const NodalView& nodes, const ElementState& s, double t
     mean_a += w * (nodes.ax[i] * ex + nodes.ay[i] * ey);
   }
 
-  // Fourier amplitudes of u_r(theta) (trapezoidal quadrature on the non-uniform rim), / R0.
+  // Fourier amplitudes of u_r(theta) (trapezoidal quadrature on the non-uniform rim), / R0;
+  // u_r rebuilt at the rim nodes from modes 0..kFilteredAbarModes gives the filtered A-bar.
   std::vector<double> amplitude(modes_ + 1);
+  std::vector<double> ur_filtered(nr, 0.0);
   for (int m = 0; m <= modes_; ++m) {
     double a = 0, b = 0;
     const double* cs = &mode_cos_[m * nr];
@@ -162,18 +215,22 @@ void Diagnostics::sample(const NodalView& nodes, const ElementState& s, double t
     }
     const double norm = m == 0 ? 1.0 / kTwoPi : 1.0 / std::numbers::pi;
     amplitude[m] = norm * std::hypot(a, b) / reference_radius_;
+    if (m <= kFilteredAbarModes)
+      for (std::size_t k = 0; k < nr; ++k) ur_filtered[k] += norm * (a * cs[k] + b * sn[k]);
   }
+  double uf_min = std::numeric_limits<double>::max(), uf_max = -uf_min;
+  for (double u : ur_filtered) uf_min = std::min(uf_min, u), uf_max = std::max(uf_max, u);
 
   double center_area = 0, center_stress = 0;
   for (int32_t e : center_elements_) {
     const double area = geometry_.area0[e];
     center_area += area;
-    center_stress += area * element_stress(nodes, s, e).mean();
+    center_stress += area * element_stress(nodes, s, nodal_sm, e).mean();
   }
 
   double min_hoop = std::numeric_limits<double>::max();
   for (int32_t e : rim_elements_) {
-    const ElementStress st = element_stress(nodes, s, e);
+    const ElementStress st = element_stress(nodes, s, nodal_sm, e);
     const auto& tri = mesh.triangles[e];
     const double cx = (nodes.x[tri[0]] + nodes.x[tri[1]] + nodes.x[tri[2]]) / 3.0 - origin_[0];
     const double cy = (nodes.y[tri[0]] + nodes.y[tri[1]] + nodes.y[tri[2]]) / 3.0 - origin_[1];
@@ -195,6 +252,18 @@ void Diagnostics::sample(const NodalView& nodes, const ElementState& s, double t
   h.rim_mean_radial_acceleration.push_back(mean_a);
   h.rim_min_hoop_stress.push_back(min_hoop);
   h.dt.push_back(dt);
+  h.abar_filtered.push_back(nr ? (uf_max - uf_min) / reference_radius_ : 0);
+  h.max_aspect_ratio.push_back(max_aspect);
+  const bool known = dt_element >= 0 && static_cast<std::size_t>(dt_element) < geometry_.size();
+  const std::size_t de = known ? static_cast<std::size_t>(dt_element) : 0;
+  h.dt_element.push_back(known ? static_cast<double>(dt_element) : -1.0);
+  h.dt_element_aspect_ratio.push_back(known ? aspect[de] : 0.0);
+  h.dt_element_j.push_back(known ? element_stress(nodes, s, nodal_sm, de).j : 0.0);
+  h.dt_element_on_rim.push_back(known && (on_rim_node_[geometry_.node0[de]] ||
+                                          on_rim_node_[geometry_.node1[de]] ||
+                                          on_rim_node_[geometry_.node2[de]])
+                                    ? 1.0
+                                    : 0.0);
   h.modes.push_back(std::move(amplitude));
 }
 
@@ -213,8 +282,10 @@ FieldFrame Diagnostics::frame(const NodalView& nodes, const ElementState& s, dou
   }
   fr.J.resize(ne), fr.mean_stress.resize(ne), fr.radial_stress.resize(ne);
   fr.hoop_stress.resize(ne), fr.von_mises.resize(ne);
+  fr.aspect_ratio = aspect_ratios(nodes);
+  const std::vector<double> nodal_sm = volumetric(nodes).element_mean_stress;
   for (std::size_t e = 0; e < ne; ++e) {
-    const ElementStress st = element_stress(nodes, s, e);
+    const ElementStress st = element_stress(nodes, s, nodal_sm, e);
     const auto& tri = mesh.triangles[e];
     const double cx = (nodes.x[tri[0]] + nodes.x[tri[1]] + nodes.x[tri[2]]) / 3.0 - origin_[0];
     const double cy = (nodes.y[tri[0]] + nodes.y[tri[1]] + nodes.y[tri[2]]) / 3.0 - origin_[1];

@@ -17,9 +17,9 @@ struct NodalView {
   const double *x, *y, *vx, *vy, *ax, *ay, *mass;
 };
 
-// Cauchy stress of one element (3x3 plane strain: xx, xy, yy, zz), its J and stored energy.
+// Cauchy stress of one element (3x3 plane strain: xx, xy, yy, zz) and its J.
 struct ElementStress {
-  double xx, xy, yy, zz, j, stored_energy_density;
+  double xx, xy, yy, zz, j;
   double mean() const { return (xx + yy + zz) / 3.0; }
 };
 
@@ -33,13 +33,25 @@ class Diagnostics {
 
   // Appends one sample at time t. Dissipation and external work are accumulated by the
   // integrator and passed in.
+  // dt_element is the element that set dt (KernelTotals::min_step_element; < 0 = unknown).
   void sample(const NodalView& nodes, const ElementState& elements, double t, double dt,
-              double dissipated, double external_work, History& history) const;
+              int64_t dt_element, double dissipated, double external_work, History& history) const;
 
   FieldFrame frame(const NodalView& nodes, const ElementState& elements, double t) const;
 
+  // longest edge^2 / (2 area) of every element in its current shape.
+  std::vector<double> aspect_ratios(const NodalView& nodes) const;
+  // The volumetric part under the element formulation: per-element mean stress as the kernel
+  // applies it (empty for plain P1, whose elements use their own J) and the stored energy of the
+  // whole body (J/m; deviatoric included).
+  struct Volumetric {
+    std::vector<double> element_mean_stress;
+    double stored_energy = 0;
+  };
+  Volumetric volumetric(const NodalView& nodes) const;
+  // volumetric_sm: Volumetric::element_mean_stress (empty for plain P1).
   ElementStress element_stress(const NodalView& nodes, const ElementState& elements,
-                               std::size_t e) const;
+                               const std::vector<double>& volumetric_sm, std::size_t e) const;
 
  private:
   const Problem& problem_;
@@ -53,6 +65,8 @@ class Diagnostics {
   std::vector<double> mode_cos_, mode_sin_;  // (M+1) x rim, row-major by mode
   std::vector<int32_t> center_elements_;
   std::vector<int32_t> rim_elements_;  // elements with an edge on the outer boundary
+  std::vector<uint8_t> on_rim_node_;   // 1 for nodes of the outer boundary loop
+  std::vector<double> nodal_area0_;    // reference nodal areas (average nodal pressure only)
 };
 
 }  // namespace softshock

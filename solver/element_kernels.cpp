@@ -16,7 +16,8 @@ __attribute__((simd("notinbranch"))) double log(double) noexcept;
 namespace softshock {
 
 void ElementState::resize(std::size_t elements) {
-  for (auto* v : {&f_xx, &f_xy, &f_yx, &f_yy, &log_j, &pv_xx, &pv_xy, &pv_yx, &pv_yy}) {
+  for (auto* v : {&f_xx, &f_xy, &f_yx, &f_yy, &log_j, &pv_xx, &pv_xy, &pv_yx, &pv_yy, &viscosity,
+                  &bulk_viscosity}) {
     v->assign(elements, 0.0);
   }
   reset_to_reference();
@@ -27,20 +28,37 @@ void ElementState::reset_to_reference() {
     f_xx[e] = 1.0, f_xy[e] = 0.0, f_yx[e] = 0.0, f_yy[e] = 1.0;
     log_j[e] = 0.0;
     pv_xx[e] = pv_xy[e] = pv_yx[e] = pv_yy[e] = 0.0;
+    viscosity[e] = bulk_viscosity[e] = 0.0;
   }
 }
 
-// Compiled for AVX2 and for the baseline ISA; the loader picks one at start-up.
-__attribute__((target_clones("avx512f", "avx2", "default"))) void compute_element_forces(
-    const ElementGeometry& g, const double* x, const double* y, const KernelParams& p,
-    std::size_t begin, std::size_t end, ElementState& s, KernelTotals& totals, double* node_fx,
-    double* node_fy) {
+namespace {
+
+// The element loop, once for plain P1 and once with nodal pressures; inlined into the
+// target_clones entry point below so each ISA gets its own vectorised copy.
+template <bool kNodal>
+inline __attribute__((always_inline)) void element_loop(const ElementGeometry& g, const double* x,
+                                                        const double* y, const KernelParams& p,
+                                                        std::size_t begin, std::size_t end,
+                                                        ElementState& s, KernelTotals& totals,
+                                                        double* node_fx, double* node_fy,
+                                                        bool& all_valid) {
   namespace cm = continuum;
   const double n = p.tait_n;
-  const bool lagged = p.viscosity && p.dt > 0;
-  const double viscosity_on = lagged ? 1.0 : 0.0;
+  const bool lagged = p.dt > 0;
+  const double artificial_on = p.viscosity && lagged ? 1.0 : 0.0;
+  const double eta = lagged ? p.eta : 0.0;
   const double dt = lagged ? p.dt : 1.0;  // keeps the unused viscous branch finite
   const double kappa = p.kappa, mu = p.mu, rho0 = p.rho0, c1 = p.c1, c2 = p.c2;
+  const double ramp_inv = p.ramp_inv, altitude_length = p.altitude_length;
+  const double shear_share = p.artificial_shear;
+  double *shear_out = s.viscosity.data(), *bulk_out = s.bulk_viscosity.data();
+  const double w_element = kNodal ? p.element_weight : 1.0, w_nodal = 1.0 - w_element;
+  const double* nodal_sm = p.nodal_mean_stress;
+  const double* nodal_k = p.nodal_bulk_modulus;
+  const double* shift = p.element_stress_shift;
+  const double k_stab = p.stabilization_bulk_modulus;
+  const double sqrt3 = std::sqrt(3.0);
 
   const int32_t* node0 = g.node0.data();
   const int32_t* node1 = g.node1.data();
@@ -51,18 +69,20 @@ __attribute__((target_clones("avx512f", "avx2", "default"))) void compute_elemen
   double* log_j_prev = s.log_j.data();
   double *pxx = s.pv_xx.data(), *pxy = s.pv_xy.data(), *pyx = s.pv_yx.data(), *pyy = s.pv_yy.data();
 
-  // Edge vectors are gathered per block into small contiguous buffers (indexed loads do not
-  // vectorise well); the element loop then streams plain arrays. The loop body is branch-free
-  // and reduction-free (viscosity is selected, not skipped; totals are reduced afterwards), so
-  // it vectorises, exp and log included.
+  // Edge vectors (and, with nodal pressures, the nodes' Tait state) are gathered per block into
+  // small contiguous buffers (indexed loads do not vectorise well); the element loop then
+  // streams plain arrays. The loop body is branch-free and reduction-free (viscosity is
+  // selected, not skipped; totals are reduced afterwards), so it vectorises, exp and log
+  // included.
   constexpr std::size_t kBlock = 256;
   alignas(64) double edge1x[kBlock], edge1y[kBlock], edge2x[kBlock], edge2y[kBlock];
+  alignas(64) double nodal_sm_mean[kBlock], nodal_k_max[kBlock];
   // Per-element results reduced after the (reduction-free, hence vectorisable) loop.
   alignas(64) double step_sq_out[kBlock], dissipation_out[kBlock], j_out[kBlock];
   // Corner forces of the block, scattered to the nodes after the vectorised loop.
   alignas(64) double f1x_out[kBlock], f1y_out[kBlock], f2x_out[kBlock], f2y_out[kBlock];
   double min_step_sq = totals.min_step_sq, dissipation = 0.0;
-  bool all_valid = true;
+  int64_t min_step_element = totals.min_step_element;
   for (std::size_t block = begin; block < end; block += kBlock) {
     const std::size_t count = std::min(kBlock, end - block);
     for (std::size_t k = 0; k < count; ++k) {
@@ -70,6 +90,11 @@ __attribute__((target_clones("avx512f", "avx2", "default"))) void compute_elemen
       const int32_t a = node0[e], b = node1[e], c = node2[e];
       edge1x[k] = x[b] - x[a], edge1y[k] = y[b] - y[a];
       edge2x[k] = x[c] - x[a], edge2y[k] = y[c] - y[a];
+      if constexpr (kNodal) {
+        nodal_sm_mean[k] = (nodal_sm[a] + nodal_sm[b] + nodal_sm[c]) / 3.0;
+        const double kab = nodal_k[a] > nodal_k[b] ? nodal_k[a] : nodal_k[b];
+        nodal_k_max[k] = kab > nodal_k[c] ? kab : nodal_k[c];
+      }
     }
 #pragma GCC ivdep
     for (std::size_t k = 0; k < count; ++k) {
@@ -81,28 +106,46 @@ __attribute__((target_clones("avx512f", "avx2", "default"))) void compute_elemen
       j_out[k] = j;
       // One logarithm feeds J^-n, J^-2/3 and the viscosity's ln(J / J_prev).
       const double log_j = ::log(j);
-      const double j_minus_n = ::exp(-n * log_j);
       const double j_minus_23 = ::exp(-2.0 / 3.0 * log_j);
-      const double mean_stress = cm::tait_mean_stress(kappa, n, j_minus_n);
+      double mean_stress, bulk_modulus;
+      if constexpr (kNodal) {
+        const double j_minus_n = w_element > 0.0 ? ::exp(-n * log_j) : 1.0;
+        mean_stress = w_nodal * (nodal_sm_mean[k] + shift[e]) +
+                      w_element * cm::tait_mean_stress(kappa, n, j_minus_n);
+        bulk_modulus = w_nodal * (nodal_k_max[k] + k_stab) +
+                       w_element * cm::tait_bulk_modulus(kappa, j_minus_n);
+      } else {
+        const double j_minus_n = ::exp(-n * log_j);
+        mean_stress = cm::tait_mean_stress(kappa, n, j_minus_n);
+        bulk_modulus = cm::tait_bulk_modulus(kappa, j_minus_n);
+      }
       const cm::Mat2 cof = cm::cofactor(f);
       const cm::Mat2 elastic = cm::elastic_piola(f, cof, j, mean_stress, mu, j_minus_23);
 
-      const double c_sq =
-          cm::longitudinal_speed_sq(cm::tait_bulk_modulus(kappa, j_minus_n), mu, rho0, j);
+      const double c_sq = cm::longitudinal_speed_sq(bulk_modulus, mu, rho0, j);
+      const double c = std::sqrt(c_sq);
       const double h_sq = cm::smallest_altitude_sq(e1x, e1y, e2x, e2y);
-      step_sq_out[k] = h_sq / c_sq;
 
-      // Viscosity only while the element is compressed (J < J_prev) and a step was taken.
+      // Viscosity: artificial (continuous in the compression measure z) plus Kelvin-Voigt.
       const cm::Mat2 f_prev{fxx[e], fxy[e], fyx[e], fyy[e]};
-      const double log_j_ratio = log_j - log_j_prev[e];
-      const double compressing = log_j_ratio < 0.0 ? viscosity_on : 0.0;
-      const double nu = compressing * cm::artificial_viscosity(std::sqrt(h_sq), rho0, j, c1, c2,
-                                                               std::sqrt(c_sq), log_j_ratio, dt);
-      const cm::Mat2 pv = cm::viscous_piola(f, f_prev, cof, nu, dt);
+      const double h_area = std::sqrt(sqrt3 * j * area0[e]);
+      const double h_visc = altitude_length * std::sqrt(h_sq) + (1.0 - altitude_length) * h_area;
+      const double z = -h_visc * (log_j - log_j_prev[e]) / (dt * c);
+      // The thesis's artificial viscosity is a shear viscosity; the continuous one acts on
+      // compression alone, as a bulk viscosity of the same longitudinal strength (4/3 nu), so a
+      // planar shock sees the same viscous stress but isochoric (shear) flow -- the rim's
+      // instability -- sees only the physical eta (docs/model.md).
+      const double nu_art =
+          artificial_on * cm::artificial_viscosity(h_visc, rho0, j, c1, c2, c, z, ramp_inv);
+      const double nu = eta + shear_share * nu_art;
+      const double zeta = (1.0 - shear_share) * 4.0 / 3.0 * nu_art;
+      step_sq_out[k] = cm::stable_step_sq(h_sq, c_sq, 4.0 / 3.0 * nu + zeta, rho0, j);
+      const cm::Mat2 pv = cm::viscous_piola(f, f_prev, cof, nu, zeta, dt);
+      shear_out[e] = nu, bulk_out[e] = zeta;
       // Work of the viscous stress over the step, trapezoidal in time: what the integrator sees
       // as nodal viscous forces times the nodal displacement increments.
       dissipation_out[k] =
-          viscosity_on * 0.5 * area0[e] *
+          0.5 * area0[e] *
           ((pv[0] + pxx[e]) * (f[0] - f_prev[0]) + (pv[1] + pxy[e]) * (f[1] - f_prev[1]) +
            (pv[2] + pyx[e]) * (f[2] - f_prev[2]) + (pv[3] + pyy[e]) * (f[3] - f_prev[3]));
 
@@ -121,19 +164,39 @@ __attribute__((target_clones("avx512f", "avx2", "default"))) void compute_elemen
       f1x_out[k] = f1x, f1y_out[k] = f1y, f2x_out[k] = f2x, f2y_out[k] = f2y;
     }
     for (std::size_t k = 0; k < count; ++k) {
-      min_step_sq = step_sq_out[k] < min_step_sq ? step_sq_out[k] : min_step_sq;
+      const std::size_t e = block + k;
+      if (step_sq_out[k] < min_step_sq)
+        min_step_sq = step_sq_out[k], min_step_element = static_cast<int64_t>(e);
       dissipation += dissipation_out[k];
       all_valid &= j_out[k] > 0.0;  // false for J <= 0 and for NaN
-      const std::size_t e = block + k;
       node_fx[node0[e]] -= f1x_out[k] + f2x_out[k];
       node_fy[node0[e]] -= f1y_out[k] + f2y_out[k];
       node_fx[node1[e]] += f1x_out[k], node_fy[node1[e]] += f1y_out[k];
       node_fx[node2[e]] += f2x_out[k], node_fy[node2[e]] += f2y_out[k];
     }
   }
-
   totals.min_step_sq = min_step_sq;
+  totals.min_step_element = min_step_element;
   totals.dissipation += dissipation;
+}
+
+}  // namespace
+
+// Compiled for AVX-512, AVX2 and the baseline ISA; the loader picks one at start-up.
+__attribute__((target_clones("avx512f", "avx2", "default"))) void compute_element_forces(
+    const ElementGeometry& g, const double* x, const double* y, const KernelParams& p,
+    std::size_t begin, std::size_t end, ElementState& s, KernelTotals& totals, double* node_fx,
+    double* node_fy) {
+  namespace cm = continuum;
+  const int32_t *node0 = g.node0.data(), *node1 = g.node1.data(), *node2 = g.node2.data();
+  const double *dxx = g.dm_inv_xx.data(), *dxy = g.dm_inv_xy.data(), *dyx = g.dm_inv_yx.data(),
+               *dyy = g.dm_inv_yy.data();
+  bool all_valid = true;
+  if (p.nodal_mean_stress != nullptr)
+    element_loop<true>(g, x, y, p, begin, end, s, totals, node_fx, node_fy, all_valid);
+  else
+    element_loop<false>(g, x, y, p, begin, end, s, totals, node_fx, node_fy, all_valid);
+
   if (!all_valid && totals.bad_element < 0) {  // rare: recompute J to name the first offender
     for (std::size_t e = begin; e < end; ++e) {
       const double j = cm::det(cm::deformation_gradient(

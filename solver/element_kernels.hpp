@@ -22,6 +22,7 @@ struct ElementState {
   std::vector<double> f_xx, f_xy, f_yx, f_yy;      // F at the last evaluation (lags the viscosity)
   std::vector<double> log_j;                       // ln J at the last evaluation
   std::vector<double> pv_xx, pv_xy, pv_yx, pv_yy;  // viscous P at the last evaluation
+  std::vector<double> viscosity, bulk_viscosity;   // its shear nu and bulk zeta (Pa s)
   void resize(std::size_t elements);
   void reset_to_reference();  // F = I, ln J = 0, P_v = 0
 };
@@ -29,14 +30,32 @@ struct ElementState {
 struct KernelParams {
   double kappa = 0, tait_n = 0, mu = 0, rho0 = 0;
   double c1 = 0, c2 = 0;
-  bool viscosity = true;
+  bool viscosity = true;  // artificial viscosity
+  // 1 / ramp of the continuous switch (continuum::artificial_viscosity); huge = thesis switch.
+  double ramp_inv = 50.0;
+  // Length of the artificial viscosity: 1 = smallest altitude (thesis), 0 = sqrt(sqrt(3) area),
+  // the altitude of the equilateral triangle of the current area (does not vanish on slivers).
+  double altitude_length = 0.0;
+  double eta = 0;  // Kelvin-Voigt shear viscosity, Pa s (on whenever dt > 0)
+  // 1: the artificial viscosity is a shear viscosity (the thesis); 0: a bulk viscosity 4/3 nu.
+  double artificial_shear = 0.0;
+  // Average nodal pressure: per-node Tait mean stress and bulk modulus (nodal_pressure.hpp),
+  // mixed with the element's own as (1 - w) mean(nodal) + w element. nullptr = plain P1 (w = 1).
+  const double* nodal_mean_stress = nullptr;
+  const double* nodal_bulk_modulus = nullptr;
+  // Stabilisation of the nodal-pressure element (nodal_pressure.hpp): per-element stress s_e
+  // added to the nodal mean, and beta kappa added to the bulk modulus of the stable step.
+  const double* element_stress_shift = nullptr;
+  double stabilization_bulk_modulus = 0.0;
+  double element_weight = 1.0;
   double dt = 0;  // the step that led from the stored state to the current positions; 0 = none
 };
 
 struct KernelTotals {
-  double min_step_sq = 1e300;  // min over elements of h^2 / c^2 (s^2)
-  double dissipation = 0;      // trapezoidal P_v : dF increment over this step (J/m)
-  int64_t bad_element = -1;    // first element with J <= 0 or non-finite J
+  double min_step_sq = 1e300;     // min over elements of the stable step squared (s^2)
+  int64_t min_step_element = -1;  // the element that sets it
+  double dissipation = 0;         // trapezoidal P_v : dF increment over this step (J/m)
+  int64_t bad_element = -1;       // first element with J <= 0 or non-finite J
   double bad_j = 0;
 };
 

@@ -343,6 +343,34 @@ void sort_for_locality(Mesh& mesh) {
   mesh = std::move(sorted);
 }
 
+Mesh make_corrugated_strip_mesh(double wavelength, double height, double amplitude,
+                                int target_elements) {
+  if (!(wavelength > 0.0) || !(height > 0.0) || !std::isfinite(wavelength) ||
+      !std::isfinite(height) || !(std::fabs(amplitude) < 0.5 * height)) {
+    throw std::invalid_argument(
+        "make_corrugated_strip_mesh: wavelength and height must be positive and finite and "
+        "|amplitude| < height / 2");
+  }
+  const double width = 0.5 * wavelength;
+  // 2 nx ny = N with square cells: nx = sqrt(N width / (2 height)).
+  const int nx =
+      std::max(1, static_cast<int>(std::lround(std::sqrt(0.5 * target_elements * width / height))));
+  const int ny = std::max(1, static_cast<int>(std::lround(0.5 * target_elements / nx)));
+  Mesh mesh = make_rectangle_mesh(width, height, nx, ny);
+  const double k = 2.0 * std::numbers::pi / wavelength;
+  for (std::size_t i = 0; i < mesh.node_count(); ++i)
+    mesh.y[i] *= (height + amplitude * std::cos(k * mesh.x[i])) / height;
+  return mesh;
+}
+
+void rotate_mesh(Mesh& mesh, double angle_rad) {
+  const double c = std::cos(angle_rad), s = std::sin(angle_rad);
+  for (std::size_t i = 0; i < mesh.node_count(); ++i) {
+    const double x = mesh.x[i], y = mesh.y[i];
+    mesh.x[i] = c * x - s * y, mesh.y[i] = s * x + c * y;
+  }
+}
+
 Mesh make_rectangle_mesh(double lx, double ly, int nx, int ny) {
   if (!(lx > 0.0) || !(ly > 0.0) || !std::isfinite(lx) || !std::isfinite(ly)) {
     throw std::invalid_argument("make_rectangle_mesh: side lengths must be positive and finite");

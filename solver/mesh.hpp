@@ -33,6 +33,15 @@ void sort_for_locality(Mesh& mesh);
 // (diagonals alternating so the mesh has no preferred direction). For tests and benchmarks.
 Mesh make_rectangle_mesh(double lx, double ly, int nx, int ny);
 
+// The strip 0 <= x <= wavelength / 2, 0 <= y <= height + amplitude cos(2 pi x / wavelength)
+// (a planar Richtmyer-Meshkov target): a rectangle mesh of about target_elements triangles of
+// aspect ~1, stretched vertically so its top follows the corrugation exactly.
+Mesh make_corrugated_strip_mesh(double wavelength, double height, double amplitude,
+                                int target_elements);
+
+// Turns every node about the origin by angle_rad (counter-clockwise).
+void rotate_mesh(Mesh& mesh, double angle_rad);
+
 // Area-weighted centroid and total area of the mesh.
 std::array<double, 2> mesh_centroid(const Mesh& mesh);
 double mesh_area(const Mesh& mesh);

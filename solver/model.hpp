@@ -15,13 +15,48 @@ struct Material {
   double bulk_modulus_Pa = 2e9;   // kappa
   double shear_modulus_Pa = 5e3;  // mu
   double tait_gamma = 6.15;       // gamma-bar; the Tait exponent is n = gamma-bar + 1
+  // Kelvin-Voigt shear viscosity eta: Cauchy stress 2 eta dev(D), always on. 0 = elastic.
+  double shear_viscosity_Pa_s = 0.0;
   double tait_n() const { return tait_gamma + 1.0; }
+};
+
+// How the artificial viscosity turns on (docs/model.md, "Shock capturing").
+enum class ViscositySwitch {
+  // Linear term ramps up continuously with the compression measure z = h |dJ/J| / (a dt), full
+  // strength from z = ramp; length h from the current area (does not vanish on slivers).
+  kContinuous,
+  // The thesis: on while J decreases, off otherwise; length h = smallest altitude.
+  kCompressionOnly,
 };
 
 struct ArtificialViscosity {
   double c1 = 1.0;  // multiplies h * |ln(J+/J)| / dt (compression rate)
   double c2 = 0.1;  // multiplies the acoustic speed
   bool enabled = true;
+  ViscositySwitch switch_kind = ViscositySwitch::kContinuous;
+  double ramp = 0.02;  // kContinuous: compression measure at which the c2 term is fully on
+};
+
+// The volumetric (Tait) response of the triangles (docs/model.md, "Element").
+enum class ElementFormulation {
+  kP1,                    // one J per element: locks at kappa/mu >> 1
+  kAverageNodalPressure,  // Bonet & Burton 1998: J per node from nodal areas, no locking
+};
+
+struct Element {
+  ElementFormulation formulation = ElementFormulation::kAverageNodalPressure;
+  // Weight of the element's own J in the volumetric energy (0 = purely nodal, 1 = plain P1).
+  double element_weight = 0.0;
+  // beta: stiffness, as a fraction of kappa, against element J departing from the mean of its
+  // nodes' (the element-level volume modes nodal pressures leave free; nodal_pressure.hpp).
+  double stabilization = 0.2;
+};
+
+// A seeded perturbation of the pulse: p(theta, t) = p(t) (1 + amplitude cos(mode theta)), theta
+// the reference polar angle of the loaded edge's midpoint.
+struct LoadPerturbation {
+  int mode = 0;
+  double amplitude = 0.0;
 };
 
 enum class PulseShape { kSquare, kGaussian, kLinear, kQuadratic };
@@ -41,7 +76,9 @@ struct Problem {
   Mesh mesh;
   Material material;
   ArtificialViscosity viscosity;
+  Element element;
   PressurePulse load;
+  LoadPerturbation perturbation;
   // Edges carrying the follower pressure (body on the left); empty = every boundary edge.
   std::vector<std::array<int32_t, 2>> loaded_edges;
   bool load_all_boundary = true;  // false with empty loaded_edges = no load

@@ -8,6 +8,8 @@
 #include <sstream>
 
 #include "gmsh_mesher.hpp"
+#include "rim_roughness.hpp"
+#include "ring_mesher.hpp"
 
 namespace softshock {
 namespace {
@@ -18,7 +20,12 @@ namespace pb = google::protobuf;
 constexpr double kRadius = 90e-6, kSide = 540e-6, kCornerRadius = 90e-6;
 constexpr int kTargetElements = 16500;
 constexpr double kDensity = 1000.0, kKappa = 2e9, kMu = 5e3, kGamma = 6.15;
-constexpr double kC1 = 1.0, kC2 = 0.1;
+constexpr double kShearViscosity = 0.2;  // Pa s: docs/model.md, "Physical viscosity"
+constexpr double kC1 = 1.0, kC2 = 0.1, kRamp = 0.02;
+constexpr double kElementWeight = 0.0, kStabilization = 0.2;
+constexpr double kRoughness = 1e-3;
+constexpr int kRoughnessMinMode = 2, kRoughnessMaxMode = 64;
+constexpr double kStripWavelength = 10e-6, kStripHeight = 40e-6, kStripAmplitude = 50e-9;
 constexpr double kPressure = 2e9, kDuration = 8e-9;
 constexpr double kEndTime = 800e-9, kCfl = 0.5, kOutputInterval = 20e-9, kHistoryInterval = 1e-9;
 constexpr int kModes = 64, kThreads = 1;
@@ -41,14 +48,42 @@ std::string fmt(double v) {
 // Material, viscosity and load of a normalized spec.
 void set_parameters(const v1::RunSpec& s, Problem& p) {
   const auto& m = s.material();
-  p.material = {m.density(), m.bulk_modulus(), m.shear_modulus(), m.tait_gamma()};
-  p.viscosity = {s.viscosity().c1(), s.viscosity().c2(), true};
+  p.material = {m.density(), m.bulk_modulus(), m.shear_modulus(), m.tait_gamma(),
+                m.shear_viscosity()};
+  const auto& v = s.viscosity();
+  p.viscosity = {v.c1(), v.c2(), true,
+                 v.activation() == v1::COMPRESSION_ONLY ? ViscositySwitch::kCompressionOnly
+                                                        : ViscositySwitch::kContinuous,
+                 v.ramp()};
+  p.element = {s.element().formulation() == v1::P1 ? ElementFormulation::kP1
+                                                   : ElementFormulation::kAverageNodalPressure,
+               s.element().element_weight(), s.element().stabilization()};
   const auto& l = s.load();
   PulseShape shape = PulseShape::kSquare;
   if (l.shape() == v1::GAUSSIAN) shape = PulseShape::kGaussian;
   if (l.shape() == v1::LINEAR) shape = PulseShape::kLinear;
   if (l.shape() == v1::QUADRATIC) shape = PulseShape::kQuadratic;
   p.load = {shape, l.pressure(), l.duration()};
+  p.perturbation = {l.perturbation().mode(), l.perturbation().amplitude()};
+}
+
+// The planar Richtmyer-Meshkov target: sliding walls at both sides, the pulse on the bottom,
+// the corrugated top free. The diagnostics' polar frame is centred on the bottom's middle with
+// R0 = height, so "rim" figures describe the whole outline; read the top surface from frames.
+void set_up_corrugated_strip(const v1::Geometry& g, Problem& p) {
+  const auto& c = g.corrugated_strip();
+  p.mesh =
+      make_corrugated_strip_mesh(c.wavelength(), c.height(), c.amplitude(), g.target_elements());
+  const double width = 0.5 * c.wavelength(), tol = 1e-9 * width;
+  const std::size_t nn = p.mesh.node_count();
+  p.fixed_x.assign(nn, 0);
+  for (std::size_t i = 0; i < nn; ++i)
+    if (p.mesh.x[i] < tol || p.mesh.x[i] > width - tol) p.fixed_x[i] = 1;
+  p.load_all_boundary = false;
+  for (const auto& e : p.mesh.boundary_edges)
+    if (p.mesh.y[e[0]] < tol && p.mesh.y[e[1]] < tol) p.loaded_edges.push_back(e);
+  p.origin = {0.5 * width, 0.0};
+  p.reference_radius_m = c.height();
 }
 
 }  // namespace
@@ -92,20 +127,46 @@ v1::RunSpec with_defaults(const v1::RunSpec& in) {
       break;
     case v1::Geometry::kMeshFile:
       break;
+    case v1::Geometry::kCorrugatedStrip: {
+      auto* c = g->mutable_corrugated_strip();
+      if (!c->has_wavelength()) c->set_wavelength(kStripWavelength);
+      if (!c->has_height()) c->set_height(kStripHeight);
+      if (!c->has_amplitude()) c->set_amplitude(kStripAmplitude);
+      break;
+    }
   }
   if (!g->has_target_elements()) g->set_target_elements(kTargetElements);
+  if (g->mesher() == v1::MESHER_UNSPECIFIED)
+    g->set_mesher(g->has_disk() ? v1::CONCENTRIC_RINGS : v1::FRONTAL_DELAUNAY);
+  if (!g->has_mesh_rotation()) g->set_mesh_rotation(0.0);
+  auto* rough = g->mutable_rim_roughness();
+  const bool star_shaped = g->has_disk() || g->has_rounded_square();
+  if (!rough->has_amplitude()) rough->set_amplitude(star_shaped ? kRoughness : 0.0);
+  if (!rough->has_min_mode()) rough->set_min_mode(kRoughnessMinMode);
+  if (!rough->has_max_mode()) rough->set_max_mode(kRoughnessMaxMode);
+  if (!rough->has_seed()) rough->set_seed(1);
   auto* m = s.mutable_material();
   if (!m->has_density()) m->set_density(kDensity);
   if (!m->has_bulk_modulus()) m->set_bulk_modulus(kKappa);
   if (!m->has_shear_modulus()) m->set_shear_modulus(kMu);
   if (!m->has_tait_gamma()) m->set_tait_gamma(kGamma);
+  if (!m->has_shear_viscosity()) m->set_shear_viscosity(kShearViscosity);
   auto* v = s.mutable_viscosity();
   if (!v->has_c1()) v->set_c1(kC1);
   if (!v->has_c2()) v->set_c2(kC2);
+  if (v->activation() == v1::VISCOSITY_ACTIVATION_UNSPECIFIED) v->set_activation(v1::CONTINUOUS);
+  if (!v->has_ramp()) v->set_ramp(kRamp);
+  auto* el = s.mutable_element();
+  if (el->formulation() == v1::ELEMENT_FORMULATION_UNSPECIFIED)
+    el->set_formulation(v1::AVERAGE_NODAL_PRESSURE);
+  if (!el->has_element_weight()) el->set_element_weight(kElementWeight);
+  if (!el->has_stabilization()) el->set_stabilization(kStabilization);
   auto* l = s.mutable_load();
   if (!l->has_pressure()) l->set_pressure(kPressure);
   if (!l->has_duration()) l->set_duration(kDuration);
   if (l->shape() == v1::PULSE_SHAPE_UNSPECIFIED) l->set_shape(v1::SQUARE);
+  if (!l->perturbation().has_mode()) l->mutable_perturbation()->set_mode(0);
+  if (!l->perturbation().has_amplitude()) l->mutable_perturbation()->set_amplitude(0.0);
   auto* r = s.mutable_run();
   if (!r->has_end_time()) r->set_end_time(kEndTime);
   if (!r->has_cfl()) r->set_cfl(kCfl);
@@ -136,9 +197,34 @@ void validate_spec(const v1::RunSpec& s, const SpecLimits& limits) {
               "file '" + g.mesh_file() + "' does not exist or is not a regular file");
       break;
     }
+    case v1::Geometry::kCorrugatedStrip: {
+      const auto& c = g.corrugated_strip();
+      require_finite_positive(c.wavelength(), "geometry.corrugated_strip.wavelength");
+      require_finite_positive(c.height(), "geometry.corrugated_strip.height");
+      require(std::isfinite(c.amplitude()) && std::fabs(c.amplitude()) < 0.5 * c.height(),
+              "geometry.corrugated_strip.amplitude",
+              "must be finite with |amplitude| < height / 2");
+      break;
+    }
     case v1::Geometry::SHAPE_NOT_SET:
-      throw SpecError("geometry", "one of disk, rounded_square or mesh_file is required");
+      throw SpecError("geometry",
+                      "one of disk, rounded_square, mesh_file or corrugated_strip is required");
   }
+  require(v1::Mesher_IsValid(g.mesher()) && g.mesher() != v1::MESHER_UNSPECIFIED, "geometry.mesher",
+          "must be FRONTAL_DELAUNAY or CONCENTRIC_RINGS");
+  require(g.mesher() != v1::CONCENTRIC_RINGS || g.has_disk(), "geometry.mesher",
+          "CONCENTRIC_RINGS meshes disks only");
+  require(std::isfinite(g.mesh_rotation()) && std::fabs(g.mesh_rotation()) <= 8.0,
+          "geometry.mesh_rotation", "must be a finite angle in [-8, 8] rad");
+  require(g.mesh_rotation() == 0.0 || g.has_disk(), "geometry.mesh_rotation",
+          "applies to disks only (it would turn any other body)");
+  const auto& rough = g.rim_roughness();
+  require(std::isfinite(rough.amplitude()) && rough.amplitude() >= 0 && rough.amplitude() <= 0.02,
+          "geometry.rim_roughness.amplitude", "must be >= 0 and <= 0.02 (of R0)");
+  require(rough.amplitude() == 0 || g.has_disk() || g.has_rounded_square(),
+          "geometry.rim_roughness.amplitude", "applies to disks and rounded squares only");
+  require(rough.min_mode() >= 1 && rough.max_mode() >= rough.min_mode() && rough.max_mode() <= 1024,
+          "geometry.rim_roughness", "needs 1 <= min_mode <= max_mode <= 1024");
   require(g.target_elements() >= kMinElements && g.target_elements() <= limits.max_elements,
           "geometry.target_elements",
           "must be between " + std::to_string(kMinElements) + " and " +
@@ -150,10 +236,26 @@ void validate_spec(const v1::RunSpec& s, const SpecLimits& limits) {
   require(std::isfinite(m.shear_modulus()) && m.shear_modulus() >= 0, "material.shear_modulus",
           "must be a finite number >= 0");
   require_finite_positive(m.tait_gamma(), "material.tait_gamma");
+  require(std::isfinite(m.shear_viscosity()) && m.shear_viscosity() >= 0,
+          "material.shear_viscosity", "must be a finite number >= 0 (Pa s)");
 
   const auto& v = s.viscosity();
   require(std::isfinite(v.c1()) && v.c1() >= 0, "viscosity.c1", "must be a finite number >= 0");
   require(std::isfinite(v.c2()) && v.c2() >= 0, "viscosity.c2", "must be a finite number >= 0");
+  require(v1::ViscosityActivation_IsValid(v.activation()) &&
+              v.activation() != v1::VISCOSITY_ACTIVATION_UNSPECIFIED,
+          "viscosity.activation", "must be CONTINUOUS or COMPRESSION_ONLY");
+  require(std::isfinite(v.ramp()) && v.ramp() > 0 && v.ramp() <= 10, "viscosity.ramp",
+          "must be > 0 and <= 10");
+  const auto& el = s.element();
+  require(v1::ElementFormulation_IsValid(el.formulation()) &&
+              el.formulation() != v1::ELEMENT_FORMULATION_UNSPECIFIED,
+          "element.formulation", "must be P1 or AVERAGE_NODAL_PRESSURE");
+  require(
+      std::isfinite(el.element_weight()) && el.element_weight() >= 0 && el.element_weight() <= 1,
+      "element.element_weight", "must be between 0 and 1");
+  require(std::isfinite(el.stabilization()) && el.stabilization() >= 0 && el.stabilization() <= 10,
+          "element.stabilization", "must be between 0 and 10");
 
   const auto& l = s.load();
   require(
@@ -162,6 +264,11 @@ void validate_spec(const v1::RunSpec& s, const SpecLimits& limits) {
   require_finite_positive(l.duration(), "load.duration");
   require(v1::PulseShape_IsValid(l.shape()) && l.shape() != v1::PULSE_SHAPE_UNSPECIFIED,
           "load.shape", "must be SQUARE, GAUSSIAN, LINEAR or QUADRATIC");
+  require(l.perturbation().mode() >= 0 && l.perturbation().mode() <= 1024, "load.perturbation.mode",
+          "must be between 0 and 1024");
+  require(
+      std::isfinite(l.perturbation().amplitude()) && std::fabs(l.perturbation().amplitude()) <= 1,
+      "load.perturbation.amplitude", "must be between -1 and 1");
 
   const auto& r = s.run();
   require(std::isfinite(r.end_time()) && r.end_time() > 0 && r.end_time() <= limits.max_end_time_s,
@@ -201,7 +308,10 @@ Problem make_problem(const v1::RunSpec& s, const SpecLimits& limits) {
   const auto& g = s.geometry();
   switch (g.shape_case()) {
     case v1::Geometry::kDisk:
-      p.mesh = mesh_disk(g.disk().radius(), g.target_elements());
+      p.mesh = g.mesher() == v1::CONCENTRIC_RINGS
+                   ? mesh_disk_rings(g.disk().radius(), g.target_elements())
+                   : mesh_disk(g.disk().radius(), g.target_elements());
+      if (g.mesh_rotation() != 0.0) rotate_mesh(p.mesh, g.mesh_rotation());
       p.origin = {0.0, 0.0};
       p.reference_radius_m = g.disk().radius();
       break;
@@ -218,8 +328,17 @@ Problem make_problem(const v1::RunSpec& s, const SpecLimits& limits) {
         throw SpecError("geometry.mesh_file", e.what());
       }
       break;
+    case v1::Geometry::kCorrugatedStrip:
+      set_up_corrugated_strip(g, p);
+      break;
     case v1::Geometry::SHAPE_NOT_SET:
-      throw SpecError("geometry", "one of disk, rounded_square or mesh_file is required");
+      throw SpecError("geometry",
+                      "one of disk, rounded_square, mesh_file or corrugated_strip is required");
+  }
+  if (g.rim_roughness().amplitude() > 0) {
+    const auto& r = g.rim_roughness();
+    apply_rim_roughness(p.mesh, p.origin, p.reference_radius_m,
+                        {r.amplitude(), r.min_mode(), r.max_mode(), r.seed()});
   }
   require(static_cast<int64_t>(p.mesh.element_count()) <= limits.max_elements,
           "geometry.target_elements",
@@ -235,6 +354,7 @@ NondimensionalGroups spec_groups(const v1::RunSpec& s) {
   double r0 = std::nan("");
   if (s.geometry().has_disk()) r0 = s.geometry().disk().radius();
   if (s.geometry().has_rounded_square()) r0 = 0.5 * s.geometry().rounded_square().side();
+  if (s.geometry().has_corrugated_strip()) r0 = s.geometry().corrugated_strip().height();
   return nondimensional_groups(p.material, p.viscosity, p.load, r0);
 }
 

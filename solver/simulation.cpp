@@ -11,6 +11,7 @@
 
 #include "diagnostics.hpp"
 #include "element_kernels.hpp"
+#include "nodal_pressure.hpp"
 
 namespace softshock {
 
@@ -26,7 +27,13 @@ std::vector<std::pair<std::string, const std::vector<double>*>> History::columns
           {"rim_mean_radial_velocity", &rim_mean_radial_velocity},
           {"rim_mean_radial_acceleration", &rim_mean_radial_acceleration},
           {"rim_min_hoop_stress", &rim_min_hoop_stress},
-          {"dt", &dt}};
+          {"dt", &dt},
+          {"abar_filtered", &abar_filtered},
+          {"max_aspect_ratio", &max_aspect_ratio},
+          {"dt_element", &dt_element},
+          {"dt_element_aspect_ratio", &dt_element_aspect_ratio},
+          {"dt_element_j", &dt_element_j},
+          {"dt_element_on_rim", &dt_element_on_rim}};
 }
 
 std::string series_units(std::string_view name) {
@@ -43,6 +50,12 @@ std::string series_units(std::string_view name) {
       {"rim_mean_radial_acceleration", "m/s^2"},
       {"rim_min_hoop_stress", "Pa"},
       {"dt", "s"},
+      {"abar_filtered", "1"},
+      {"max_aspect_ratio", "1"},
+      {"dt_element", "1"},
+      {"dt_element_aspect_ratio", "1"},
+      {"dt_element_j", "1"},
+      {"dt_element_on_rim", "1"},
   };
   for (const auto& [n, u] : kUnits)
     if (n == name) return std::string(u);
@@ -148,6 +161,19 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
     loaded_nodes.insert(loaded_nodes.end(), edge.begin(), edge.end());
   std::sort(loaded_nodes.begin(), loaded_nodes.end());
   loaded_nodes.erase(std::unique(loaded_nodes.begin(), loaded_nodes.end()), loaded_nodes.end());
+  // Seeded perturbation: each loaded edge's pressure times 1 + amplitude cos(mode theta), theta
+  // the reference polar angle of its midpoint.
+  std::vector<double> edge_factor(loaded_edges.size(), 1.0);
+  if (problem.perturbation.amplitude != 0.0) {
+    const auto origin = polar_frame(problem).origin;
+    for (std::size_t k = 0; k < loaded_edges.size(); ++k) {
+      const auto [a, b] = loaded_edges[k];
+      const double theta = std::atan2(0.5 * (mesh.y[a] + mesh.y[b]) - origin[1],
+                                      0.5 * (mesh.x[a] + mesh.x[b]) - origin[0]);
+      edge_factor[k] +=
+          problem.perturbation.amplitude * std::cos(problem.perturbation.mode * theta);
+    }
+  }
   std::vector<double> fext_x(nn, 0.0), fext_y(nn, 0.0);
   std::vector<double> fext_old_x(loaded_nodes.size()), fext_old_y(loaded_nodes.size());
   std::vector<double> x_old(loaded_nodes.size()), y_old(loaded_nodes.size());
@@ -158,8 +184,10 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
     for (int32_t i : loaded_nodes) fext_x[i] = 0.0, fext_y[i] = 0.0;
     const double p = problem.load.at(t);
     if (p == 0.0) return;
-    for (const auto& [a, b] : loaded_edges) {
-      const double hx = -0.5 * p * (y[b] - y[a]), hy = 0.5 * p * (x[b] - x[a]);
+    for (std::size_t k = 0; k < loaded_edges.size(); ++k) {
+      const auto [a, b] = loaded_edges[k];
+      const double pk = p * edge_factor[k];
+      const double hx = -0.5 * pk * (y[b] - y[a]), hy = 0.5 * pk * (x[b] - x[a]);
       fext_x[a] += hx, fext_y[a] += hy, fext_x[b] += hx, fext_y[b] += hy;
     }
   };
@@ -172,6 +200,32 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
   params.c1 = problem.viscosity.c1;
   params.c2 = problem.viscosity.c2;
   params.viscosity = problem.viscosity.enabled;
+  const bool thesis_switch = problem.viscosity.switch_kind == ViscositySwitch::kCompressionOnly;
+  params.ramp_inv = thesis_switch ? 1e300 : 1.0 / problem.viscosity.ramp;
+  params.altitude_length = thesis_switch ? 1.0 : 0.0;
+  params.artificial_shear = thesis_switch ? 1.0 : 0.0;
+  params.eta = problem.material.shear_viscosity_Pa_s;
+
+  // Average nodal pressure: nodal areas, each node's Tait state, then the stabilisation of the
+  // element-level volume modes, before the element loop (nodal_pressure.hpp).
+  const bool nodal = problem.element.formulation == ElementFormulation::kAverageNodalPressure;
+  const double beta_kappa = problem.element.stabilization * params.kappa;
+  const std::size_t nodal_n = nodal ? nn : 0, nodal_e = nodal ? ne : 0;
+  const std::vector<double> nodal_area0 =
+      nodal ? reference_nodal_areas(geometry, nn) : std::vector<double>{};
+  std::vector<double> nodal_area(nodal_n), nodal_j(nodal_n), nodal_sm(nodal_n), nodal_k(nodal_n),
+      nodal_q(nodal_n), j_element(nodal_e), s_element(nodal_e, 0.0);
+  std::vector<std::vector<double>> thread_area(nodal && threads > 1 ? threads : 0),
+      thread_q(nodal && threads > 1 ? threads : 0);
+  for (auto* v : {&thread_area, &thread_q})
+    for (auto& a : *v) a.resize(nn);
+  if (nodal) {
+    params.nodal_mean_stress = nodal_sm.data();
+    params.nodal_bulk_modulus = nodal_k.data();
+    params.element_stress_shift = s_element.data();
+    params.element_weight = problem.element.element_weight;
+    params.stabilization_bulk_modulus = beta_kappa;
+  }
 
   // One step's node and element work: the predictor moves the nodes by dt (dt = 0: evaluate at
   // the current state), then internal + external forces give the new accelerations and the
@@ -196,6 +250,42 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
         vx[i] += 0.5 * dt * ax[i];
         vy[i] += 0.5 * dt * ay[i];
       }
+    };
+    auto element_range = [&](int tid) {
+      return std::pair<std::size_t, std::size_t>{ne * tid / threads, ne * (tid + 1) / threads};
+    };
+    // Per-thread partial nodal sums, added in thread order by each thread's node range.
+    auto sum_threads = [&](std::vector<std::vector<double>>& parts, std::size_t n0, std::size_t n1,
+                           double* out) {
+      for (std::size_t i = n0; i < n1; ++i) {
+        double sum = 0.0;
+        for (int k = 0; k < threads; ++k) sum += parts[k][i];
+        out[i] = sum;
+      }
+    };
+    auto nodal_areas = [&](int tid) {  // pass 1: this thread's elements' shares of the areas
+      const auto [e0, e1] = element_range(tid);
+      double* out = threads > 1 ? thread_area[tid].data() : nodal_area.data();
+      std::fill(out, out + nn, 0.0);
+      accumulate_nodal_areas(geometry, x.data(), y.data(), e0, e1, out, j_element.data());
+    };
+    auto nodal_state = [&](int tid) {  // pass 2: J, mean stress, bulk modulus of the nodes
+      const auto [n0, n1] = node_range(tid);
+      if (threads > 1) sum_threads(thread_area, n0, n1, nodal_area.data());
+      nodal_tait_state(params.kappa, params.tait_n, nodal_area0.data(), nodal_area.data(), n0, n1,
+                       nodal_j.data(), nodal_sm.data(), nodal_k.data());
+    };
+    auto stabilization = [&](int tid) {  // pass 3: element discrepancies, their nodal shares
+      const auto [e0, e1] = element_range(tid);
+      double* out = threads > 1 ? thread_q[tid].data() : nodal_q.data();
+      std::fill(out, out + nn, 0.0);
+      accumulate_stabilization(geometry, beta_kappa, nodal_j.data(), j_element.data(), e0, e1,
+                               s_element.data(), out);
+    };
+    auto stabilized_state = [&](int tid) {  // pass 4: nodal stress less the patch mean of s
+      const auto [n0, n1] = node_range(tid);
+      if (threads > 1) sum_threads(thread_q, n0, n1, nodal_q.data());
+      subtract_stabilization(nodal_area0.data(), nodal_q.data(), n0, n1, nodal_sm.data());
     };
     auto work = [&](int tid) {
       const std::size_t e0 = ne * tid / threads, e1 = ne * (tid + 1) / threads;
@@ -226,6 +316,10 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
     if (threads == 1) {
       predict(0);
       apply_follower_pressure(t);
+      if (nodal) {
+        nodal_areas(0), nodal_state(0);
+        if (beta_kappa > 0) stabilization(0), stabilized_state(0);
+      }
       work(0);
       correct(0);
     } else {
@@ -236,6 +330,18 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
 #pragma omp barrier
 #pragma omp single
         apply_follower_pressure(t);  // boundary only; the single's barrier follows
+        if (nodal) {
+          nodal_areas(tid);
+#pragma omp barrier
+          nodal_state(tid);
+#pragma omp barrier
+          if (beta_kappa > 0) {
+            stabilization(tid);
+#pragma omp barrier
+            stabilized_state(tid);
+#pragma omp barrier
+          }
+        }
         work(tid);
 #pragma omp barrier
         correct(tid);
@@ -243,7 +349,8 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
     }
     KernelTotals total;
     for (const auto& k : partial) {
-      total.min_step_sq = std::min(total.min_step_sq, k.min_step_sq);
+      if (k.min_step_sq < total.min_step_sq)
+        total.min_step_sq = k.min_step_sq, total.min_step_element = k.min_step_element;
       total.dissipation += k.dissipation;
       if (total.bad_element < 0 && k.bad_element >= 0)
         total.bad_element = k.bad_element, total.bad_j = k.bad_j;
@@ -264,7 +371,8 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
   }
   double dt_stable = options.cfl * std::sqrt(totals.min_step_sq);
   result.min_dt_s = result.max_dt_s = dt_stable;
-  diagnostics.sample(view, elements, t, dt_stable, dissipated, external_work, result.history);
+  diagnostics.sample(view, elements, t, dt_stable, totals.min_step_element, dissipated,
+                     external_work, result.history);
   if (options.output_interval_s > 0 && control.on_frame) {
     control.on_frame(diagnostics.frame(view, elements, t));
     ++result.frames_written;
@@ -328,7 +436,8 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
 
     if (t >= schedule.next_history_time() - tiny) {
       while (schedule.next_history_time() <= t + tiny) ++schedule.next_history;
-      diagnostics.sample(view, elements, t, dt_stable, dissipated, external_work, result.history);
+      diagnostics.sample(view, elements, t, dt_stable, totals.min_step_element, dissipated,
+                         external_work, result.history);
       if (!std::isfinite(result.history.kinetic_energy.back())) {
         result.status = RunStatus::kFailed;
         result.failure = FailureKind::kNonFinite;
@@ -352,7 +461,8 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
 
   // The final state is always in the history and (when frames are on) in the last frame.
   if (result.history.time.back() < t - tiny && result.status != RunStatus::kFailed)
-    diagnostics.sample(view, elements, t, dt_stable, dissipated, external_work, result.history);
+    diagnostics.sample(view, elements, t, dt_stable, totals.min_step_element, dissipated,
+                       external_work, result.history);
   if (options.output_interval_s > 0 && control.on_frame && last_frame_time < t - tiny &&
       steps > 0 && result.status != RunStatus::kFailed) {
     control.on_frame(diagnostics.frame(view, elements, t));

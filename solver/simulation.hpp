@@ -27,6 +27,15 @@ struct History {
   std::vector<double> rim_mean_radial_acceleration;  // m/s^2
   std::vector<double> rim_min_hoop_stress;  // Pa, most negative hoop stress of rim elements
   std::vector<double> dt;                   // s, the stable step in force at the sample
+  // A-bar of r(theta) rebuilt from Fourier modes 0..kFilteredAbarModes of the rim radial
+  // displacement: a single node cannot set it (abar is the raw max - min over rim nodes).
+  std::vector<double> abar_filtered;
+  std::vector<double> max_aspect_ratio;  // largest longest-edge^2 / (2 area) over all elements
+  // The element that sets the stable step: index, aspect ratio, J, and 1 if it touches the rim.
+  std::vector<double> dt_element;
+  std::vector<double> dt_element_aspect_ratio;
+  std::vector<double> dt_element_j;
+  std::vector<double> dt_element_on_rim;
   // Fourier amplitudes of the rim radial displacement / R0: modes[k][m], m = 0..M.
   std::vector<std::vector<double>> modes;
 
@@ -34,6 +43,9 @@ struct History {
   // Names and columns of the scalar series, in a fixed order (for writers and clients).
   std::vector<std::pair<std::string, const std::vector<double>*>> columns() const;
 };
+
+// Highest Fourier mode in History::abar_filtered (fewer if the run computes fewer modes).
+inline constexpr int kFilteredAbarModes = 32;
 
 // SI units of a History series by name ("J/m", "Pa", "1" for A-bar, ...); empty if unknown.
 std::string series_units(std::string_view name);
@@ -48,6 +60,7 @@ struct FieldFrame {
   std::vector<double> radial_stress;  // Pa, sigma_rr in the current polar frame
   std::vector<double> hoop_stress;    // Pa, sigma_tt
   std::vector<double> von_mises;      // Pa (plane strain, includes sigma_zz)
+  std::vector<double> aspect_ratio;   // longest edge^2 / (2 area), current shape
 };
 
 struct Progress {

@@ -55,7 +55,7 @@ struct FieldSpec {
   std::vector<double> FieldFrame::*member;
   const char* units;
 };
-constexpr std::array<FieldSpec, 7> kFields{{
+constexpr std::array<FieldSpec, 8> kFields{{
     {"displacement", true, &FieldFrame::displacement, "m"},
     {"velocity", true, &FieldFrame::velocity, "m/s"},
     {"J", false, &FieldFrame::J, "1"},
@@ -63,6 +63,7 @@ constexpr std::array<FieldSpec, 7> kFields{{
     {"radial_stress", false, &FieldFrame::radial_stress, "Pa"},
     {"hoop_stress", false, &FieldFrame::hoop_stress, "Pa"},
     {"von_mises", false, &FieldFrame::von_mises, "Pa"},
+    {"aspect_ratio", false, &FieldFrame::aspect_ratio, "1"},
 }};
 
 std::string frame_group_name(std::size_t k) {

@@ -17,7 +17,7 @@ import sys
 
 import meshio
 
-CELL_SCALARS = ("J", "mean_stress", "radial_stress", "hoop_stress", "von_mises")
+CELL_SCALARS = ("J", "mean_stress", "radial_stress", "hoop_stress", "von_mises", "aspect_ratio")
 
 
 def check(path, nodes, elements, times):

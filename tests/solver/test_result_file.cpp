@@ -90,6 +90,7 @@ FieldFrame make_frame(const Mesh& mesh, double time_s, double salt) {
     f.radial_stress.push_back(probe_value(i + 3, salt));
     f.hoop_stress.push_back(probe_value(i + 4, salt));
     f.von_mises.push_back(std::abs(probe_value(i, salt + 2)));
+    f.aspect_ratio.push_back(1.2 + std::abs(probe_value(i, salt + 3)));
   }
   return f;
 }
@@ -125,8 +126,9 @@ RunSummary make_summary(const Mesh& mesh) {
   return s;
 }
 
-const std::vector<std::string> kFieldNames = {
-    "displacement", "velocity", "J", "mean_stress", "radial_stress", "hoop_stress", "von_mises"};
+const std::vector<std::string> kFieldNames = {"displacement", "velocity",      "J",
+                                              "mean_stress",  "radial_stress", "hoop_stress",
+                                              "von_mises",    "aspect_ratio"};
 
 [[maybe_unused]] std::vector<double> field_of(const FieldFrame& f, const std::string& name) {
   if (name == "displacement") return f.displacement;
@@ -135,6 +137,7 @@ const std::vector<std::string> kFieldNames = {
   if (name == "mean_stress") return f.mean_stress;
   if (name == "radial_stress") return f.radial_stress;
   if (name == "hoop_stress") return f.hoop_stress;
+  if (name == "aspect_ratio") return f.aspect_ratio;
   return f.von_mises;
 }
 

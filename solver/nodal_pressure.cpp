@@ -1,0 +1,100 @@
+#include "nodal_pressure.hpp"
+
+#include <cmath>
+
+#include "continuum.hpp"
+
+// libmvec's vector log/exp (see element_kernels.cpp for why they are declared here).
+extern "C" {
+__attribute__((simd("notinbranch"))) double exp(double) noexcept;
+__attribute__((simd("notinbranch"))) double log(double) noexcept;
+}
+
+namespace softshock {
+
+std::vector<double> reference_nodal_areas(const ElementGeometry& g, std::size_t nodes) {
+  std::vector<double> v(nodes, 0.0);
+  for (std::size_t e = 0; e < g.size(); ++e) {
+    const double third = g.area0[e] / 3.0;
+    v[g.node0[e]] += third, v[g.node1[e]] += third, v[g.node2[e]] += third;
+  }
+  return v;
+}
+
+void accumulate_nodal_areas(const ElementGeometry& g, const double* x, const double* y,
+                            std::size_t begin, std::size_t end, double* area, double* j_element) {
+  const int32_t *n0 = g.node0.data(), *n1 = g.node1.data(), *n2 = g.node2.data();
+  const double* area0 = g.area0.data();
+  for (std::size_t e = begin; e < end; ++e) {
+    const int32_t a = n0[e], b = n1[e], c = n2[e];
+    const double current = 0.5 * ((x[b] - x[a]) * (y[c] - y[a]) - (y[b] - y[a]) * (x[c] - x[a]));
+    j_element[e] = current / area0[e];
+    const double third = current / 3.0;
+    area[a] += third, area[b] += third, area[c] += third;
+  }
+}
+
+__attribute__((target_clones("avx512f", "avx2", "default"))) void nodal_tait_state(
+    double kappa, double n, const double* reference_area, const double* area, std::size_t begin,
+    std::size_t end, double* nodal_j, double* mean_stress, double* bulk_modulus) {
+#pragma GCC ivdep
+  for (std::size_t i = begin; i < end; ++i) {
+    const double j = area[i] / reference_area[i];
+    const double j_minus_n = ::exp(-n * ::log(j));
+    nodal_j[i] = j;
+    mean_stress[i] = continuum::tait_mean_stress(kappa, n, j_minus_n);
+    bulk_modulus[i] = continuum::tait_bulk_modulus(kappa, j_minus_n);
+  }
+}
+
+void accumulate_stabilization(const ElementGeometry& g, double beta_kappa, const double* nodal_j,
+                              const double* j_element, std::size_t begin, std::size_t end,
+                              double* s_element, double* q_sum) {
+  const int32_t *n0 = g.node0.data(), *n1 = g.node1.data(), *n2 = g.node2.data();
+  const double* area0 = g.area0.data();
+  for (std::size_t e = begin; e < end; ++e) {
+    const int32_t a = n0[e], b = n1[e], c = n2[e];
+    const double s = beta_kappa * (j_element[e] - (nodal_j[a] + nodal_j[b] + nodal_j[c]) / 3.0);
+    s_element[e] = s;
+    const double share = area0[e] * s / 3.0;
+    q_sum[a] += share, q_sum[b] += share, q_sum[c] += share;
+  }
+}
+
+void subtract_stabilization(const double* reference_area, const double* q_sum, std::size_t begin,
+                            std::size_t end, double* mean_stress) {
+  for (std::size_t i = begin; i < end; ++i) mean_stress[i] -= q_sum[i] / reference_area[i];
+}
+
+NodalPressureState nodal_pressure_state(const ElementGeometry& g,
+                                        const std::vector<double>& reference_area, double kappa,
+                                        double n, double element_weight, double beta,
+                                        const double* x, const double* y) {
+  const std::size_t nn = reference_area.size(), ne = g.size();
+  std::vector<double> area(nn, 0.0), nodal_j(nn), sm(nn), k(nn), j_element(ne), s(ne, 0.0),
+      q(nn, 0.0);
+  accumulate_nodal_areas(g, x, y, 0, ne, area.data(), j_element.data());
+  nodal_tait_state(kappa, n, reference_area.data(), area.data(), 0, nn, nodal_j.data(), sm.data(),
+                   k.data());
+  NodalPressureState out;
+  const double w_nodal = 1.0 - element_weight;
+  for (std::size_t i = 0; i < nn; ++i)
+    out.stored_energy += w_nodal * reference_area[i] *
+                         continuum::tait_energy(kappa, n, nodal_j[i], std::pow(nodal_j[i], -n));
+  accumulate_stabilization(g, beta * kappa, nodal_j.data(), j_element.data(), 0, ne, s.data(),
+                           q.data());
+  subtract_stabilization(reference_area.data(), q.data(), 0, nn, sm.data());
+  out.element_mean_stress.resize(ne);
+  for (std::size_t e = 0; e < ne; ++e) {
+    const double je = j_element[e];
+    out.stored_energy +=
+        w_nodal * 0.5 * g.area0[e] * s[e] * s[e] / (beta * kappa > 0 ? beta * kappa : 1.0);
+    const double nodal_mean = (sm[g.node0[e]] + sm[g.node1[e]] + sm[g.node2[e]]) / 3.0 + s[e];
+    out.element_mean_stress[e] =
+        w_nodal * nodal_mean +
+        element_weight * continuum::tait_mean_stress(kappa, n, std::pow(je, -n));
+  }
+  return out;
+}
+
+}  // namespace softshock

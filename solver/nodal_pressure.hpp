@@ -1,0 +1,62 @@
+// The average nodal pressure triangle (Bonet & Burton 1998), its nodal half, with a
+// stabilisation of the element-level volume modes it leaves free (docs/model.md, "Element").
+//
+// Each node owns a third of the area of every element around it; J_a = (current nodal area) /
+// (reference nodal area) carries the Tait response, and an element's volumetric stress is the
+// mean of its three nodes'. The stored energy sum_a V_a W_vol(J_a) depends on nodal areas only,
+// so P1 triangles no longer lock -- but element areas may then checkerboard at fixed nodal areas
+// (seen as alternating J at the rim of a soft gel). The stabilisation energy
+//   W_stab = sum_e A_e (beta kappa / 2) (J_e - Jbar_e)^2,  Jbar_e = mean of its nodes' J_a,
+// penalises only that discrepancy, which is second order in h for a smooth field, so it does not
+// lock. Its forces, like the nodal pressure's, are element "mean stresses":
+//   s_e = beta kappa (J_e - Jbar_e), less the mean over the element's nodes of
+//   q_a = sum_{e around a} A_e s_e / (3 V_a),
+// so the element kernel needs per node sigma_m(J_a) - q_a and per element s_e: the forces are the
+// exact gradient of the stored energy and the energy balance still closes.
+#pragma once
+
+#include <cstddef>
+#include <vector>
+
+#include "element_kernels.hpp"
+
+namespace softshock {
+
+// Reference nodal areas V_a = sum over the elements around a of A_e / 3.
+std::vector<double> reference_nodal_areas(const ElementGeometry& geometry, std::size_t nodes);
+
+// Pass 1 (elements [begin, end)): adds a_e / 3 (current area) to each of the element's nodes'
+// area and stores J_e = a_e / A_e.
+void accumulate_nodal_areas(const ElementGeometry& geometry, const double* x, const double* y,
+                            std::size_t begin, std::size_t end, double* area, double* j_element);
+
+// Pass 2 (nodes [begin, end)): J_a = area / reference_area, the Tait mean stress sigma_m(J_a)
+// and the tangent bulk modulus K(J_a) (both Pa).
+void nodal_tait_state(double kappa, double tait_n, const double* reference_area, const double* area,
+                      std::size_t begin, std::size_t end, double* nodal_j, double* mean_stress,
+                      double* bulk_modulus);
+
+// Pass 3 (elements [begin, end)): s_e = beta_kappa (J_e - Jbar_e), and A_e s_e / 3 added to
+// each of the element's nodes' q_sum.
+void accumulate_stabilization(const ElementGeometry& geometry, double beta_kappa,
+                              const double* nodal_j, const double* j_element, std::size_t begin,
+                              std::size_t end, double* s_element, double* q_sum);
+
+// Pass 4 (nodes [begin, end)): mean_stress -= q_sum / reference_area, the nodal stress the
+// element kernel averages.
+void subtract_stabilization(const double* reference_area, const double* q_sum, std::size_t begin,
+                            std::size_t end, double* mean_stress);
+
+// All four passes at once, for diagnostics (not the hot path): per element, the volumetric mean
+// stress the kernel applies (nodal mean + stabilisation; element_weight blends in the element's
+// own sigma_m(J_e)), and the stored volumetric + stabilisation energy of the body (J/m).
+struct NodalPressureState {
+  std::vector<double> element_mean_stress;
+  double stored_energy = 0;
+};
+NodalPressureState nodal_pressure_state(const ElementGeometry& geometry,
+                                        const std::vector<double>& reference_area, double kappa,
+                                        double tait_n, double element_weight, double beta,
+                                        const double* x, const double* y);
+
+}  // namespace softshock
