@@ -32,7 +32,7 @@ struct KernelParams {
   double c1 = 0, c2 = 0;
   bool viscosity = true;  // artificial viscosity
   // 1 / ramp of the continuous switch (continuum::artificial_viscosity); huge = thesis switch.
-  double ramp_inv = 50.0;
+  double ramp_inv = 5.0;
   // Length of the artificial viscosity: 1 = smallest altitude (thesis), 0 = sqrt(sqrt(3) area),
   // the altitude of the equilateral triangle of the current area (does not vanish on slivers).
   double altitude_length = 0.0;

@@ -34,7 +34,7 @@ struct ArtificialViscosity {
   double c2 = 0.1;  // multiplies the acoustic speed
   bool enabled = true;
   ViscositySwitch switch_kind = ViscositySwitch::kContinuous;
-  double ramp = 0.02;  // kContinuous: compression measure at which the c2 term is fully on
+  double ramp = 0.2;  // kContinuous: compression measure at which the c2 term is fully on
 };
 
 // The volumetric (Tait) response of the triangles (docs/model.md, "Element").

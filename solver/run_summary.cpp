@@ -68,10 +68,18 @@ RunSummary summarize(const Problem& problem, const RunResult& r) {
   const double first_cycle_end = 4.0 * s.groups.time_scale_s;
   bool after_pulse_found = false;
   double center_min = 0;
+  s.abar_end = h.abar.back();
+  s.abar_filtered_end = h.abar_filtered.back();
   for (std::size_t k = 0; k < n; ++k) {
     s.max_abar = std::max(s.max_abar, h.abar[k]);
+    s.max_abar_filtered = std::max(s.max_abar_filtered, h.abar_filtered[k]);
+    s.max_aspect_ratio = std::max(s.max_aspect_ratio, h.max_aspect_ratio[k]);
+    if (s.aspect_ratio_above_10_s < 0 && h.max_aspect_ratio[k] > 10)
+      s.aspect_ratio_above_10_s = h.time[k];
     if (h.time[k] <= first_cycle_end * (1 + 1e-12)) {
       s.max_abar_first_cycle = std::max(s.max_abar_first_cycle, h.abar[k]);
+      s.max_abar_filtered_first_cycle =
+          std::max(s.max_abar_filtered_first_cycle, h.abar_filtered[k]);
       center_min = std::min(center_min, h.center_mean_stress[k]);
     }
     if (!after_pulse_found && h.time[k] >= pulse_end * (1 - 1e-12)) {
@@ -131,7 +139,13 @@ std::string summary_to_json(const RunSummary& s) {
     << "},\"energy_injected_J_per_m\":" << number(s.energy_injected_J_per_m)
     << ",\"energy_after_pulse_J_per_m\":" << number(s.energy_after_pulse_J_per_m)
     << ",\"max_abar_first_cycle\":" << number(s.max_abar_first_cycle)
-    << ",\"max_abar\":" << number(s.max_abar) << ",\"dominant_mode_end\":" << s.dominant_mode_end
+    << ",\"max_abar\":" << number(s.max_abar) << ",\"abar_end\":" << number(s.abar_end)
+    << ",\"max_abar_filtered_first_cycle\":" << number(s.max_abar_filtered_first_cycle)
+    << ",\"max_abar_filtered\":" << number(s.max_abar_filtered)
+    << ",\"abar_filtered_end\":" << number(s.abar_filtered_end)
+    << ",\"max_aspect_ratio\":" << number(s.max_aspect_ratio)
+    << ",\"aspect_ratio_above_10_s\":" << number(s.aspect_ratio_above_10_s)
+    << ",\"dominant_mode_end\":" << s.dominant_mode_end
     << ",\"shock_at_center_s\":" << number(s.shock_at_center_s) << ",\"rim_reflections_s\":[";
   for (std::size_t k = 0; k < s.rim_reflections_s.size(); ++k)
     o << (k ? "," : "") << number(s.rim_reflections_s[k]);

@@ -30,6 +30,14 @@ struct RunSummary {
   double energy_after_pulse_J_per_m = 0;  // kinetic + elastic when the pulse has ended
   double max_abar_first_cycle = 0;        // max A-bar over 0 <= t-bar <= 4
   double max_abar = 0;                    // over the whole run
+  double abar_end = 0;                    // A-bar at the end of the run
+  // The same from r(theta) rebuilt from modes 0..kFilteredAbarModes (History::abar_filtered):
+  // a single node cannot set these.
+  double max_abar_filtered_first_cycle = 0;
+  double max_abar_filtered = 0;
+  double abar_filtered_end = 0;
+  double max_aspect_ratio = 0;            // largest longest-edge^2 / (2 area) over the samples
+  double aspect_ratio_above_10_s = -1;    // first sample with an element above 10; -1 = never
   int dominant_mode_end = 0;              // largest amplitude among modes >= 2 at the end
   double shock_at_center_s = -1;          // focusing: first minimum of centre mean stress
   std::vector<double> rim_reflections_s;  // peaks of the outward rim acceleration

@@ -209,9 +209,14 @@ TEST(PhysicsValidation, FundamentalRadialPeriodConvergesUnderRefinement) {
   std::printf("fundamental period error: 1000 elements %.3e, 4000 elements %.3e\n", coarse, fine);
 }
 
-// (f) The thesis baseline (2 GPa, 8 ns, ~16,500 triangles): the converging shock reaches the
-// centre at ~29 ns and first reflects off the rim at ~55 ns, both +- 10 % (the issue's), and
-// ~1.5 J/m (75 uJ over 50 um of gel) remain once the shock has passed (+- 10 %).
+// (f) The thesis baseline (2 GPa, 8 ns, ~16,500 triangles) with the default formulation: the
+// converging shock reaches the centre at 28.1 +- 1 ns and first reflects off the rim at
+// 53.9 +- 1 ns (where the thesis-faithful P1 solver put them, itself within 1 ns of the thesis's
+// ~29 / ~55 ns and of an independent implementation's 27.6 / 54.0 ns, physics.md section 9).
+// The energy left once the shock has passed (70 ns) is 1.589 J/m for the inviscid model that
+// reference describes (+- 2 %); the default's physical viscosity dissipates a further few
+// percent in the converging flow (docs/verification.md gives the figure), so the energy check
+// runs with eta = 0 and the default's value is printed beside it.
 TEST(PhysicsValidation, BaselineEventTimesMatchTheThesis) {
   Problem problem;
   const RunResult r =
@@ -219,15 +224,23 @@ TEST(PhysicsValidation, BaselineEventTimesMatchTheThesis) {
   ASSERT_EQ(r.status, RunStatus::kCompleted) << r.error;
   const RunSummary s = summarize(problem, r);
   EXPECT_NEAR(static_cast<double>(s.elements), 16500, 0.05 * 16500);
-  EXPECT_NEAR(s.shock_at_center_s, 29e-9, 2.9e-9);
+  EXPECT_NEAR(s.shock_at_center_s, 28.1e-9, 1e-9);
   ASSERT_FALSE(s.rim_reflections_s.empty());
-  EXPECT_NEAR(s.rim_reflections_s.front(), 55e-9, 5.5e-9);
+  EXPECT_NEAR(s.rim_reflections_s.front(), 53.9e-9, 1e-9);
   const auto& h = r.history;
-  const double retained = h.kinetic_energy.back() + h.elastic_energy.back();
-  EXPECT_NEAR(retained, 1.5, 0.15);
-  std::printf("baseline: centre %.2f ns, rim %.2f ns, retained %.3f J/m, %lld steps\n",
-              s.shock_at_center_s * 1e9, s.rim_reflections_s.front() * 1e9, retained,
-              static_cast<long long>(r.steps));
+  const double retained_default = h.kinetic_energy.back() + h.elastic_energy.back();
+
+  const RunResult inviscid = run_spec(spec_from(
+      R"({"material":{"shear_viscosity":0},"run":{"end_time":7e-8,"output_interval":0}})"));
+  ASSERT_EQ(inviscid.status, RunStatus::kCompleted) << inviscid.error;
+  const double retained =
+      inviscid.history.kinetic_energy.back() + inviscid.history.elastic_energy.back();
+  EXPECT_NEAR(retained, 1.589, 0.02 * 1.589);
+  std::printf(
+      "baseline: centre %.2f ns, rim %.2f ns, retained %.3f J/m (eta = 0: %.3f J/m), "
+      "%lld steps\n",
+      s.shock_at_center_s * 1e9, s.rim_reflections_s.front() * 1e9, retained_default, retained,
+      static_cast<long long>(r.steps));
 }
 
 // Determinism: for a given thread count the run is bit-for-bit repeatable (fixed element ranges,

@@ -1,0 +1,136 @@
+#!/usr/bin/python3
+"""Tables and pictures of the late-time verification study (scripts/late-time-study).
+
+Usage: late_time_study.py WORKDIR [--pictures DOCS_IMG_DIR]
+Reads WORKDIR/<run>/result.h5 and WORKDIR/<run>/summary.json for the runs the driver made:
+  robust_<N>, thesis_<N>  (examples/baseline.json and examples/thesis_p1.json, 800 ns)
+  before_<N>              (optional: the same baseline from a solver before the late-time work)
+  seed<m>_<N>             (1 % of mode m in the pulse, smooth rim, 450 ns)
+and prints markdown tables (docs/verification.md quotes them).
+"""
+import json
+import os
+import sys
+
+import h5py
+import numpy as np
+
+
+def load(path):
+    f = h5py.File(os.path.join(path, "result.h5"), "r")
+    ts = {k: f["timeseries"][k][:] for k in f["timeseries"]}
+    modes = f["modes/amplitude"][:]
+    summary = json.load(open(os.path.join(path, "summary.json")))
+    return f, ts, modes, summary
+
+
+def nearest(t, when):
+    return int(np.argmin(np.abs(t - when)))
+
+
+def last_frame_aspect_ratio(f):
+    """Largest longest-edge^2 / (2 area) of the deformed mesh in the last frame."""
+    xy = f["mesh/nodes"][:][:, :2]
+    tri = f["mesh/triangles"][:]
+    last = sorted(f["fields"].keys())[-1]
+    p = xy + f["fields"][last]["displacement"][:][:, :2]
+    a, b, c = p[tri[:, 0]], p[tri[:, 1]], p[tri[:, 2]]
+    e1, e2, e3 = b - a, c - a, c - b
+    area2 = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]
+    longest = np.max([np.sum(e * e, axis=1) for e in (e1, e2, e3)], axis=0)
+    return float(np.max(longest / area2))
+
+
+def robustness_table(work):
+    print("| run | elements | steps | min Δt after 300 ns (ps) | largest aspect ratio at 800 ns |"
+          " Ā(800 ns) raw / filtered | dominant mode at 800 ns | solver wall time (s) |")
+    print("|---|---|---|---|---|---|---|---|")
+    for kind in ("before", "thesis", "robust"):
+        for n in (4000, 16500, 66000):
+            d = os.path.join(work, "%s_%d" % (kind, n))
+            if not os.path.exists(os.path.join(d, "result.h5")):
+                continue
+            f, ts, modes, s = load(d)
+            t = ts["time"]
+            late = t >= 300e-9
+            print("| %s | %d | %d | %.1f | %.1f | %.3f / %.3f | %d | %.1f |" % (
+                kind, s["elements"], s["steps"], ts["dt"][late].min() * 1e12,
+                last_frame_aspect_ratio(f), ts["abar"][-1],
+                ts["abar_filtered"][-1] if "abar_filtered" in ts else float("nan"),
+                s["dominant_mode_end"], s["wall_time_s"]))
+
+
+def convergence_table(work):
+    print("| seeded mode | elements | A_m(70 ns) | G_m(250 ns) | G_m(450 ns) |"
+          " largest noise mode / seeded, 70–450 ns |")
+    print("|---|---|---|---|---|---|")
+    for m in (8, 16):
+        for n in (16500, 66000, 264000):
+            d = os.path.join(work, "seed%d_%d" % (m, n))
+            if not os.path.exists(os.path.join(d, "result.h5")):
+                continue
+            f = h5py.File(os.path.join(d, "result.h5"), "r")
+            t = f["modes/time"][:]
+            a = f["modes/amplitude"][:]
+            a70 = a[nearest(t, 70e-9), m]
+            g250 = a[nearest(t, 250e-9), m] / a70
+            g450 = a[nearest(t, 450e-9), m] / a70
+            noise, noise_mode = 0.0, 0
+            for k in range(len(t)):
+                if t[k] < 70e-9:
+                    continue
+                row = a[k].copy()
+                row[:2] = 0
+                row[::m] = 0  # the seed and its harmonics
+                j = int(np.argmax(row))
+                if row[j] / a[k, m] > noise:
+                    noise, noise_mode = row[j] / a[k, m], j
+            print("| %d | %d | %.3e | %.3f | %.3f | %.3f (mode %d) |" % (
+                m, n, a70, g250, g450,
+                noise, noise_mode))
+
+
+def pictures(work, out_dir):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.collections import PolyCollection
+    for n in (16500, 66000):
+        d = os.path.join(work, "robust_%d" % n)
+        if not os.path.exists(os.path.join(d, "result.h5")):
+            continue
+        f = h5py.File(os.path.join(d, "result.h5"), "r")
+        xy = f["mesh/nodes"][:][:, :2]
+        tri = f["mesh/triangles"][:]
+        frames = {round(f["fields"][k].attrs["time"] * 1e9): k for k in f["fields"]}
+        fig, axes = plt.subplots(1, 3, figsize=(15, 5.2))
+        for ax, when in zip(axes, (300, 500, 800)):
+            fr = f["fields"][frames[when]]
+            p = (xy + fr["displacement"][:][:, :2]) * 1e6
+            pc = PolyCollection(p[tri], array=fr["mean_stress"][:] / 1e6, cmap="coolwarm",
+                                edgecolors="k", linewidths=0.05 if n > 20000 else 0.1)
+            pc.set_clim(-300, 300)
+            ax.add_collection(pc)
+            ax.set_xlim(-110, 110)
+            ax.set_ylim(-110, 110)
+            ax.set_aspect("equal")
+            ax.set_title("%d elements, %d ns" % (n, when))
+            ax.set_xlabel("x (µm)")
+        fig.colorbar(pc, ax=axes, label="mean stress (MPa)", shrink=0.8)
+        out = os.path.join(out_dir, "late_time_%dk.png" % (n // 1000))
+        fig.savefig(out, dpi=90, bbox_inches="tight")
+        print("wrote", out)
+
+
+def main():
+    work = sys.argv[1]
+    print("## Robustness (800 ns)\n")
+    robustness_table(work)
+    print("\n## Seeded growth\n")
+    convergence_table(work)
+    if "--pictures" in sys.argv:
+        pictures(work, sys.argv[sys.argv.index("--pictures") + 1])
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,140 @@
+// Late-time verification (docs/verification.md): the answer after the shock has rung through the
+// disk is set by the physics -- a seeded perturbation and the physical viscosity -- not by the
+// mesh. CI runs the 16.5k and 66k meshes; scripts/late-time-study adds 264k and writes the tables.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "solver/run_spec.hpp"
+#include "solver/run_summary.hpp"
+#include "solver/simulation.hpp"
+
+namespace softshock {
+namespace {
+
+RunResult run_json(const std::string& json, Problem* problem_out = nullptr) {
+  const auto spec = normalize_spec(parse_spec_json(json));
+  Problem problem = make_problem(spec);
+  RunResult r = run_simulation(problem, make_options(spec));
+  if (problem_out) *problem_out = std::move(problem);
+  return r;
+}
+
+double mode_at(const History& h, int m, double t) {
+  std::size_t k = 0;
+  while (k + 1 < h.size() && h.time[k] < t - 1e-13) ++k;
+  return h.modes[k][m];
+}
+
+// A seeded run: the pulse carries 1 % of mode m, the rim is smooth, the physical viscosity is the
+// default's; the seed then dominates whatever the mesh seeds.
+std::string seeded_spec(int elements, int mode, double end_time, double rotation = 0.0) {
+  return R"({"geometry":{"target_elements":)" + std::to_string(elements) + R"(,"mesh_rotation":)" +
+         std::to_string(rotation) +
+         R"(,"rim_roughness":{"amplitude":0}},
+            "load":{"perturbation":{"mode":)" +
+         std::to_string(mode) + R"(,"amplitude":0.01}},
+            "run":{"end_time":)" +
+         std::to_string(end_time) + R"(,"output_interval":0}})";
+}
+
+// Growth factor G_m(t) = A_m(t) / A_m(70 ns) of the seeded mode m = 8 at 250 and 450 ns: the
+// 16.5k mesh agrees with the 66k one within 15 % (the issue's bound between 16.5k and 264k; the
+// 264k comparison is in the study). Noise -- modes that are not harmonics of the seed -- stays
+// below 10 % of the seeded mode up to 450 ns on 66k.
+TEST(LateTimeVerification, SeededModeEightGrowthConvergesUnderRefinement) {
+  const RunResult coarse = run_json(seeded_spec(16500, 8, 450e-9));
+  const RunResult fine = run_json(seeded_spec(66000, 8, 450e-9));
+  ASSERT_EQ(coarse.status, RunStatus::kCompleted) << coarse.error;
+  ASSERT_EQ(fine.status, RunStatus::kCompleted) << fine.error;
+  for (double t : {250e-9, 450e-9}) {
+    const double g_coarse = mode_at(coarse.history, 8, t) / mode_at(coarse.history, 8, 70e-9);
+    const double g_fine = mode_at(fine.history, 8, t) / mode_at(fine.history, 8, 70e-9);
+    std::printf("G_8(%.0f ns): 16.5k %.3f, 66k %.3f (%.1f %%)\n", t * 1e9, g_coarse, g_fine,
+                100 * (g_coarse - g_fine) / g_fine);
+    EXPECT_GT(g_fine, 1.0) << "the seeded mode grows";
+    EXPECT_NEAR(g_coarse, g_fine, 0.15 * g_fine) << "at " << t * 1e9 << " ns";
+  }
+  double worst = 0;
+  int worst_mode = 0;
+  for (std::size_t k = 0; k < fine.history.size(); ++k) {
+    if (fine.history.time[k] < 70e-9) continue;
+    const auto& a = fine.history.modes[k];
+    for (std::size_t m = 2; m < a.size(); ++m)
+      if (m % 8 != 0 && a[m] / a[8] > worst) worst = a[m] / a[8], worst_mode = static_cast<int>(m);
+  }
+  std::printf("largest noise mode / seeded mode on 66k, 70-450 ns: %.3f (mode %d)\n", worst,
+              worst_mode);
+  EXPECT_LT(worst, 0.10);
+}
+
+// The same seeded run on two meshes of equal size whose lattice is turned by 0.4 rad (the
+// concentric rings' defects then sit elsewhere relative to the seed): the rim spectrum at 300 ns
+// agrees within 10 % in every mode above 5 % of the seeded one.
+TEST(LateTimeVerification, RimSpectrumDoesNotFollowTheMeshOrientation) {
+  const RunResult a = run_json(seeded_spec(16500, 8, 300e-9, 0.0));
+  const RunResult b = run_json(seeded_spec(16500, 8, 300e-9, 0.4));
+  ASSERT_EQ(a.status, RunStatus::kCompleted) << a.error;
+  ASSERT_EQ(b.status, RunStatus::kCompleted) << b.error;
+  const auto& ma = a.history.modes.back();
+  const auto& mb = b.history.modes.back();
+  const double seeded = ma[8];
+  int compared = 0;
+  for (std::size_t m = 2; m < ma.size(); ++m) {
+    if (std::max(ma[m], mb[m]) < 0.05 * seeded) continue;
+    ++compared;
+    EXPECT_NEAR(mb[m], ma[m], 0.10 * ma[m]) << "mode " << m;
+  }
+  std::printf("rim spectrum at 300 ns, rotated mesh: %d modes compared, A_8 %.4e vs %.4e\n",
+              compared, ma[8], mb[8]);
+  EXPECT_GE(compared, 1);
+}
+
+// The default formulation to 800 ns on the default mesh: at most 6,000 steps, no sliver (aspect
+// ratio <= 15), raw A-bar < 0.5 (the issue's figures); the time step after 300 ns never set by a
+// sliver (the element that sets it has aspect ratio < 5) and never below its floor in the first
+// cycle, which is physical -- the converging shock's focus at the centre (~28 ns, J ~ 0.7, where
+// the Tait bulk modulus is ~10 kappa). (The issue's "no dt below 100 ps after 300 ns" is not met:
+// the shock refocuses at the centre at ~390 ns and sets 61 ps there, docs/verification.md.) And
+// the 66k mesh's A-bar(800 ns) within 25 % of the 16.5k one.
+TEST(LateTimeVerification, DefaultRunIsRobustAndItsLateAbarConverges) {
+  Problem problem;
+  const RunResult r = run_json(R"({"run":{"output_interval":0}})", &problem);
+  ASSERT_EQ(r.status, RunStatus::kCompleted) << r.error;
+  const History& h = r.history;
+  double min_dt_late = 1, min_dt_first_cycle = 1, worst_dt_element_aspect = 0;
+  for (std::size_t k = 1; k < h.size(); ++k) {
+    if (h.time[k] < 254.6e-9) min_dt_first_cycle = std::min(min_dt_first_cycle, h.dt[k]);
+    if (h.time[k] < 300e-9) continue;
+    min_dt_late = std::min(min_dt_late, h.dt[k]);
+    worst_dt_element_aspect = std::max(worst_dt_element_aspect, h.dt_element_aspect_ratio[k]);
+  }
+  const RunSummary s = summarize(problem, r);
+  std::printf(
+      "default 16.5k: %lld steps, min dt first cycle %.1f ps, after 300 ns %.1f ps "
+      "(largest aspect ratio of the element setting it %.2f), max aspect ratio %.2f, "
+      "A-bar(800 ns) %.4f (filtered %.4f), mode %d\n",
+      static_cast<long long>(r.steps), min_dt_first_cycle * 1e12, min_dt_late * 1e12,
+      worst_dt_element_aspect, s.max_aspect_ratio, s.abar_end, s.abar_filtered_end,
+      s.dominant_mode_end);
+  EXPECT_LE(r.steps, 6000);
+  EXPECT_LE(h.max_aspect_ratio.back(), 15.0);
+  EXPECT_LT(s.abar_end, 0.5);
+  EXPECT_LT(worst_dt_element_aspect, 5.0);
+  EXPECT_GE(min_dt_late, min_dt_first_cycle);
+
+  const RunResult fine = run_json(R"({"geometry":{"target_elements":66000},
+                                      "run":{"output_interval":0}})");
+  ASSERT_EQ(fine.status, RunStatus::kCompleted) << fine.error;
+  const double abar_fine = fine.history.abar.back();
+  std::printf("default 66k: A-bar(800 ns) %.4f (%.1f %% from 16.5k)\n", abar_fine,
+              100 * (abar_fine - s.abar_end) / s.abar_end);
+  EXPECT_NEAR(abar_fine, s.abar_end, 0.25 * s.abar_end);
+}
+
+}  // namespace
+}  // namespace softshock
