@@ -13,6 +13,7 @@
 #include <sstream>
 #include <thread>
 
+#include "grpc/health/v1/health.pb.h"
 #include "server/auth.hpp"
 #include "server/catalogue.hpp"
 #include "server/daemon_config.hpp"
@@ -199,6 +200,9 @@ Daemon::~Daemon() {
 void Daemon::start() {
   Impl& d = *impl_;
   grpc::EnableDefaultHealthCheckService(true);
+  // The built-in health service has no protobuf descriptors; touching the generated ones links
+  // health.proto into the descriptor pool, so reflection can describe grpc.health.v1.Health.
+  (void)grpc::health::v1::HealthCheckRequest::descriptor();
   grpc::reflection::InitProtoReflectionServerBuilderPlugin();
   std::shared_ptr<grpc::ServerCredentials> creds;
   if (!d.config.tls_cert.empty()) {

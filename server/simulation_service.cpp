@@ -17,6 +17,7 @@
 #include "server/field_raster.hpp"
 #include "server/grid.hpp"
 #include "server/log.hpp"
+#include "server/resource_name.hpp"
 #include "server/spec_hash.hpp"
 #include "solver/io/result_file.hpp"
 
@@ -47,18 +48,6 @@ Status invalid(const std::string& field, const std::string& rule) {
 }
 Status not_found(const std::string& id) {
   return {StatusCode::NOT_FOUND, "job " + id + " not found"};
-}
-
-// "jobs/{id}" (or "grids/{id}") or the bare id; ids are [A-Za-z0-9_-]{1,64} (they name folders
-// on disk).
-bool parse_id(const std::string& name, std::string* id, const std::string& collection = "jobs/") {
-  std::string s = name.rfind(collection, 0) == 0 ? name.substr(collection.size()) : name;
-  if (s.empty() || s.size() > 64) return false;
-  for (unsigned char c : s) {
-    if (!std::isalnum(c) && c != '-' && c != '_') return false;
-  }
-  *id = std::move(s);
-  return true;
 }
 
 int64_t timestamp_us(const google::protobuf::Timestamp& t) {
@@ -421,7 +410,7 @@ Status SimulationService::GetJob(grpc::ServerContext* ctx, const v1::GetJobReque
                                  v1::Job* resp) {
   return guarded(auth_, ctx, "GetJob", [&]() -> Status {
     std::string id;
-    if (!parse_id(req->id(), &id)) return invalid("id", "not a job name");
+    if (Status st = requested_id(*req, "jobs/", &id); !st.ok()) return st;
     auto record = catalogue_.get(id);
     if (!record) return not_found(id);
     fill_job(*record, resp);
@@ -474,7 +463,7 @@ Status SimulationService::WatchJob(grpc::ServerContext* ctx, const v1::WatchJobR
                                    grpc::ServerWriter<v1::Job>* writer) {
   return guarded(auth_, ctx, "WatchJob", [&]() -> Status {
     std::string id;
-    if (!parse_id(req->id(), &id)) return invalid("id", "not a job name");
+    if (Status st = requested_id(*req, "jobs/", &id); !st.ok()) return st;
     StreamSlot slot(*this);
     if (!slot.acquired()) {
       return {StatusCode::RESOURCE_EXHAUSTED,
@@ -526,7 +515,7 @@ Status SimulationService::CancelJob(grpc::ServerContext* ctx, const v1::CancelJo
                                     v1::Job* resp) {
   return guarded(auth_, ctx, "CancelJob", [&]() -> Status {
     std::string id;
-    if (!parse_id(req->id(), &id)) return invalid("id", "not a job name");
+    if (Status st = requested_id(*req, "jobs/", &id); !st.ok()) return st;
     return cancel(id, resp);
   });
 }
@@ -571,7 +560,7 @@ Status SimulationService::DeleteJob(grpc::ServerContext* ctx, const v1::DeleteJo
                                     v1::DeleteJobResponse*) {
   return guarded(auth_, ctx, "DeleteJob", [&]() -> Status {
     std::string id;
-    if (!parse_id(req->id(), &id)) return invalid("id", "not a job name");
+    if (Status st = requested_id(*req, "jobs/", &id); !st.ok()) return st;
     return erase(id);
   });
 }
@@ -622,7 +611,7 @@ Status SimulationService::GetJobSummary(grpc::ServerContext* ctx,
                                         const v1::GetJobSummaryRequest* req, v1::JobSummary* resp) {
   return guarded(auth_, ctx, "GetJobSummary", [&]() -> Status {
     std::string id;
-    if (!parse_id(req->id(), &id)) return invalid("id", "not a job name");
+    if (Status st = requested_id(*req, "jobs/", &id); !st.ok()) return st;
     return summary(id, resp);
   });
 }
@@ -650,7 +639,7 @@ Status SimulationService::GetTimeSeries(grpc::ServerContext* ctx,
 
 Status SimulationService::time_series(const v1::GetTimeSeriesRequest& req, v1::TimeSeries* resp) {
   std::string id, path;
-  if (!parse_id(req.id(), &id)) return invalid("id", "not a job name");
+  if (Status st = requested_id(req, "jobs/", &id); !st.ok()) return st;
   if (req.every() < 0) return invalid("every", "must not be negative");
   if (Status s = result_file(id, &path); !s.ok()) return s;
   ResultReader reader(path);
@@ -694,7 +683,7 @@ Status SimulationService::GetModes(grpc::ServerContext* ctx, const v1::GetModesR
 
 Status SimulationService::modes(const v1::GetModesRequest& req, v1::Modes* resp) {
   std::string id, path;
-  if (!parse_id(req.id(), &id)) return invalid("id", "not a job name");
+  if (Status st = requested_id(req, "jobs/", &id); !st.ok()) return st;
   if (req.every() < 0) return invalid("every", "must not be negative");
   if (req.mode_min() < 0) return invalid("mode_min", "must not be negative");
   if (req.mode_max() < 0) return invalid("mode_max", "must not be negative");
@@ -748,7 +737,7 @@ Status SimulationService::GetField(grpc::ServerContext* ctx, const v1::GetFieldR
 Status SimulationService::field(grpc::ServerContext* ctx, const v1::GetFieldRequest& req,
                                 grpc::ServerWriter<v1::FieldChunk>* writer) {
   std::string id, path;
-  if (!parse_id(req.id(), &id)) return invalid("id", "not a job name");
+  if (Status st = requested_id(req.job(), req.id(), "jobs/", &id); !st.ok()) return st;
   auto kind_it = field_kinds().find(req.name());
   if (kind_it == field_kinds().end()) {
     std::string list;
@@ -1030,7 +1019,7 @@ Status SimulationService::GetGrid(grpc::ServerContext* ctx, const v1::GetGridReq
                                   v1::Grid* resp) {
   return guarded(auth_, ctx, "GetGrid", [&]() -> Status {
     std::string id;
-    if (!parse_id(req->id(), &id, "grids/")) return invalid("id", "not a grid name");
+    if (Status st = requested_id(*req, "grids/", &id); !st.ok()) return st;
     auto record = catalogue_.get_grid(id);
     if (!record) return grid_not_found(id);
     fill_grid(*record, resp);
@@ -1062,7 +1051,7 @@ Status SimulationService::CancelGrid(grpc::ServerContext* ctx, const v1::CancelG
                                      v1::Grid* resp) {
   return guarded(auth_, ctx, "CancelGrid", [&]() -> Status {
     std::string id;
-    if (!parse_id(req->id(), &id, "grids/")) return invalid("id", "not a grid name");
+    if (Status st = requested_id(*req, "grids/", &id); !st.ok()) return st;
     return cancel_grid(id, resp);
   });
 }
@@ -1101,7 +1090,7 @@ Status SimulationService::GetGridReduction(grpc::ServerContext* ctx,
 Status SimulationService::grid_reduction(const v1::GetGridReductionRequest& req,
                                          v1::GridReduction* resp) {
   std::string id;
-  if (!parse_id(req.id(), &id, "grids/")) return invalid("id", "not a grid name");
+  if (Status st = requested_id(req, "grids/", &id); !st.ok()) return st;
   const std::string name = req.quantity().empty() ? grid_quantities().front().name : req.quantity();
   const GridQuantity* quantity = find_grid_quantity(name);
   if (quantity == nullptr) {
