@@ -34,7 +34,8 @@ try:
     from softshock_health import health_pb2, health_pb2_grpc
 except ImportError as exc:  # pragma: no cover - depends on the environment
     raise ImportError(
-        "softshock_client needs the stubs generated from proto/: run "
+        "softshock_client needs the stubs generated from proto/: install the package "
+        "(pip install --no-build-isolation client/python generates them) or run "
         "`cmake --build build --target softshock_python` and put build/python on PYTHONPATH "
         "(PYTHONPATH=build/python:client/python)") from exc
 
@@ -72,6 +73,11 @@ class SeriesDict(dict):
         super().__init__(*args, **kwargs)
         self.units = dict(units or {})
 
+    def to_xarray(self, job_id: str = ""):
+        """An xarray Dataset over time, units as attributes (needs python3-xarray)."""
+        from .xarray_views import series_dataset
+        return series_dataset(self, job_id)
+
 
 @dataclass
 class GridReduction:
@@ -91,6 +97,11 @@ class GridReduction:
 
     def __array__(self, dtype=None):
         return self.values if dtype is None else self.values.astype(dtype)
+
+    def to_xarray(self):
+        """An xarray DataArray over the grid's axes (needs python3-xarray)."""
+        from .xarray_views import reduction_dataarray
+        return reduction_dataarray(self)
 
 
 # QueryJobs filters from text: "pbar>=0.5", "gamma>6", "pbar=0.5..1.5".
@@ -366,6 +377,11 @@ class Client:
                                  f"{amp.size} amplitudes for {t.size} x {m.mode_count}")
         return t, np.arange(m.mode_min, m.mode_min + m.mode_count), amp.reshape(t.size,
                                                                                  m.mode_count)
+
+    def modes_xarray(self, job_id: str, **kw):
+        """modes() as an xarray DataArray over (time, mode) (needs python3-xarray)."""
+        from .xarray_views import modes_dataarray
+        return modes_dataarray(*self.modes(job_id, **kw), job_id=job_id)
 
     def field(self, job_id: str, name: str, time: Optional[float] = None,
               frame: Optional[int] = None, raster: Optional[Tuple[int, int]] = None,
