@@ -203,13 +203,15 @@ class StreamSlot {
 
 SimulationService::SimulationService(ServiceConfig config, Catalogue& catalogue,
                                      Executor& scheduler, JobEvents& events,
-                                     const JobRunner& runner, const Authenticator& auth)
+                                     const JobRunner& runner, const Authenticator& auth,
+                                     const MeshStore& meshes)
     : config_(config),
       catalogue_(catalogue),
       scheduler_(scheduler),
       events_(events),
       runner_(runner),
       auth_(auth),
+      meshes_(meshes),
       id_random_(std::random_device{}()) {}
 
 std::string SimulationService::new_job_id() {
@@ -274,7 +276,10 @@ std::optional<JobRecord> SimulationService::wait_terminal(const std::string& id,
 
 Status SimulationService::SubmitJob(grpc::ServerContext* ctx, const v1::SubmitJobRequest* req,
                                     v1::Job* resp) {
-  return guarded(auth_, ctx, "SubmitJob", [&] { return submit(ctx, *req, resp); });
+  return guarded(auth_, ctx, "SubmitJob", [&] {
+    auto hold = meshes_.hold_for_submit();  // its mesh cannot be deleted before the insert
+    return submit(ctx, *req, resp);
+  });
 }
 
 namespace {
@@ -353,8 +358,7 @@ Status SimulationService::submit(grpc::ServerContext* ctx, const v1::SubmitJobRe
   }
   CanonicalSpec spec;
   try {
-    spec = canonical_spec(req.spec(), config_.limits);
-    check_mesh_file(spec.spec);
+    spec = daemon_canonical_spec(req.spec(), config_.limits, meshes_);
   } catch (const SpecError& e) {
     return spec_invalid(ctx, "spec", e);
   }
@@ -903,7 +907,10 @@ void SimulationService::fill_grid(const GridRecord& r, v1::Grid* grid) const {
 
 Status SimulationService::SubmitGrid(grpc::ServerContext* ctx, const v1::SubmitGridRequest* req,
                                      v1::Grid* resp) {
-  return guarded(auth_, ctx, "SubmitGrid", [&] { return submit_grid(ctx, *req, resp); });
+  return guarded(auth_, ctx, "SubmitGrid", [&] {
+    auto hold = meshes_.hold_for_submit();
+    return submit_grid(ctx, *req, resp);
+  });
 }
 
 Status SimulationService::submit_grid(grpc::ServerContext* ctx, const v1::SubmitGridRequest& req,
@@ -918,13 +925,14 @@ Status SimulationService::submit_grid(grpc::ServerContext* ctx, const v1::Submit
   CanonicalSpec base;
   GridPlan plan;
   try {
-    base = canonical_spec(req.base_spec(), config_.limits);
-    check_mesh_file(base.spec);
+    base = daemon_canonical_spec(req.base_spec(), config_.limits, meshes_);
   } catch (const SpecError& e) {
     return spec_invalid(ctx, "base_spec", e);
   }
   try {
-    plan = expand_grid(base.spec, req.axes(), config_.limits);
+    // Points are validated against the mesh file itself, then stored with its relative name.
+    plan = expand_grid(with_absolute_mesh_file(base.spec, meshes_), req.axes(), config_.limits);
+    for (auto& point : plan.points) with_relative_mesh_file(point, meshes_);
   } catch (const SpecError& e) {
     return spec_invalid(ctx, "", e);
   }
