@@ -1,13 +1,9 @@
 #include "server/mesh_store.hpp"
 
-#include <fcntl.h>
 #include <google/protobuf/util/json_util.h>
 #include <google/protobuf/util/time_util.h>
-#include <unistd.h>
 
 #include <algorithm>
-#include <cerrno>
-#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <random>
@@ -17,6 +13,7 @@
 #include "server/job_runner.hpp"
 #include "server/spec_hash.hpp"
 #include "solver/gmsh_mesher.hpp"
+#include "solver/io/durable_file.hpp"
 
 namespace softshock::server {
 
@@ -32,34 +29,11 @@ bool is_mesh_id(const std::string& id) {
          });
 }
 
-// Writes, fsyncs and renames into place: a reader (or a crash) never sees half a file.
+// Written in full under a temporary name, then renamed: a reader (or a crash) never sees half.
 void write_durably(const fs::path& path, const std::string& bytes) {
   const fs::path tmp = path.string() + ".tmp";
-  const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
-  if (fd < 0) throw std::runtime_error("cannot create " + tmp.string() + ": " + strerror(errno));
-  std::size_t done = 0;
-  while (done < bytes.size()) {
-    const ssize_t n = ::write(fd, bytes.data() + done, bytes.size() - done);
-    if (n < 0 && errno == EINTR) continue;
-    if (n < 0) {
-      const int saved = errno;
-      ::close(fd);
-      throw std::runtime_error("cannot write " + tmp.string() + ": " + strerror(saved));
-    }
-    done += static_cast<std::size_t>(n);
-  }
-  const bool synced = ::fsync(fd) == 0;
-  ::close(fd);
-  if (!synced) throw std::runtime_error("cannot fsync " + tmp.string());
-  fs::rename(tmp, path);
-}
-
-void fsync_dir(const fs::path& dir) {
-  const int fd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
-  if (fd >= 0) {
-    (void)::fsync(fd);
-    ::close(fd);
-  }
+  write_file_synced(tmp, bytes);
+  rename_file(tmp, path);
 }
 
 std::optional<v1::Mesh> read_record(const fs::path& json_path) {
@@ -138,7 +112,7 @@ v1::Mesh MeshStore::add(const std::string& bytes, const std::string& file_name, 
   // The file first, then its record: a record always has its file.
   fs::rename(staged, fs::path(uploads_dir_) / (id + ".msh"));
   write_durably(fs::path(uploads_dir_) / (id + ".json"), json);
-  fsync_dir(uploads_dir_);
+  fsync_path(uploads_dir_, true);
   return record;
 }
 
@@ -173,7 +147,7 @@ bool MeshStore::remove(const std::string& id) {
   // The record first: a file without a record is invisible and is replaced by a re-upload.
   const bool had = fs::remove(fs::path(uploads_dir_) / (id + ".json"), ec);
   fs::remove(fs::path(uploads_dir_) / (id + ".msh"), ec);
-  fsync_dir(uploads_dir_);
+  fsync_path(uploads_dir_, true);
   return had;
 }
 

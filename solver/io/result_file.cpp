@@ -19,6 +19,8 @@
 #include <string_view>
 #include <utility>
 
+#include "solver/io/durable_file.hpp"
+
 namespace softshock {
 
 namespace detail {
@@ -367,48 +369,6 @@ std::vector<T> read_all(hid_t file, const std::string& name, hid_t mem_type,
   }
   if (dims_out) *dims_out = dims;
   return values;
-}
-
-// ---- files ------------------------------------------------------------------------------------
-
-[[noreturn]] void fail_errno(const std::string& what, const fs::path& p) {
-  throw std::runtime_error(what + " " + p.string() + ": " + std::strerror(errno));
-}
-
-void fsync_path(const fs::path& p, bool directory) {
-  const int fd = ::open(p.c_str(), O_RDONLY | O_CLOEXEC | (directory ? O_DIRECTORY : 0));
-  if (fd < 0) fail_errno("cannot open for fsync", p);
-  if (::fsync(fd) != 0) {
-    const int saved = errno;
-    ::close(fd);
-    errno = saved;
-    fail_errno("cannot fsync", p);
-  }
-  ::close(fd);
-}
-
-void write_file_synced(const fs::path& p, const std::string& content) {
-  const int fd = ::open(p.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
-  if (fd < 0) fail_errno("cannot create", p);
-  std::size_t done = 0;
-  while (done < content.size()) {
-    const ssize_t n = ::write(fd, content.data() + done, content.size() - done);
-    if (n < 0 && errno == EINTR) continue;
-    if (n < 0) {
-      const int saved = errno;
-      ::close(fd);
-      errno = saved;
-      fail_errno("cannot write", p);
-    }
-    done += static_cast<std::size_t>(n);
-  }
-  if (::fsync(fd) != 0 || ::close(fd) != 0) fail_errno("cannot fsync/close", p);
-}
-
-void rename_file(const fs::path& from, const fs::path& to) {
-  if (std::rename(from.c_str(), to.c_str()) != 0) {
-    fail_errno("cannot rename " + from.string() + " to", to);
-  }
 }
 
 // File access properties: close everything still open with the file (so H5Fclose really
