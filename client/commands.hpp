@@ -40,6 +40,14 @@ int cmd_modes(const GlobalOptions& g, const ParsedArgs& a);
 int cmd_series(const GlobalOptions& g, const ParsedArgs& a);
 int cmd_field(const GlobalOptions& g, const ParsedArgs& a);
 
+// Uploaded meshes (commands_meshes.cpp).
+int cmd_mesh(const GlobalOptions& g, const ParsedArgs& a);
+// When the spec's geometry.mesh_file names a file on this machine (absolute, or relative to
+// the spec file's folder; spec_path "-" = the working directory), uploads it and replaces it by
+// geometry.mesh_id. Otherwise the spec is left alone (mesh_file then names a file in the
+// daemon's DATA/meshes/).
+void upload_local_mesh(Connection& conn, const std::string& spec_path, v1::RunSpec* spec);
+
 // Grids and the result database (commands_grids.cpp).
 int cmd_grid(const GlobalOptions& g, const ParsedArgs& a);
 int cmd_query(const GlobalOptions& g, const ParsedArgs& a);

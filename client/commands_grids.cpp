@@ -124,6 +124,7 @@ int grid_submit(const GlobalOptions& g, const ParsedArgs& a) {
       a.get("request-id")
           .value_or(request.request_id().empty() ? make_uuid() : request.request_id()));
   Connection conn(g);
+  upload_local_mesh(conn, path, request.mutable_base_spec());
   v1::Grid grid;
   conn.unary(
       [&](grpc::ClientContext& ctx) { return conn.service().SubmitGrid(&ctx, request, &grid); });

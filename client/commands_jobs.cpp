@@ -182,6 +182,7 @@ int cmd_submit(const GlobalOptions& g, const ParsedArgs& a) {
   }
 
   Connection conn(g);
+  upload_local_mesh(conn, path, request.mutable_spec());
   v1::Job job;
   conn.unary(
       [&](grpc::ClientContext& ctx) { return conn.service().SubmitJob(&ctx, request, &job); });

@@ -81,6 +81,7 @@ Connection::Connection(const GlobalOptions& options)
   args.SetMaxReceiveMessageSize(64 * 1024 * 1024);
   channel_ = grpc::CreateCustomChannel(target_, creds, args);
   service_ = v1::SimulationService::NewStub(channel_);
+  meshes_ = v1::MeshService::NewStub(channel_);
   health_ = grpc::health::v1::Health::NewStub(channel_);
 }
 

@@ -34,6 +34,7 @@ class Connection {
   explicit Connection(const GlobalOptions& options);
 
   v1::SimulationService::Stub& service() { return *service_; }
+  v1::MeshService::Stub& meshes() { return *meshes_; }
   grpc::health::v1::Health::Stub& health() { return *health_; }
   const std::string& target() const { return target_; }
   double timeout_s() const { return timeout_s_; }
@@ -53,6 +54,7 @@ class Connection {
   double timeout_s_;
   std::shared_ptr<grpc::Channel> channel_;
   std::unique_ptr<v1::SimulationService::Stub> service_;
+  std::unique_ptr<v1::MeshService::Stub> meshes_;
   std::unique_ptr<grpc::health::v1::Health::Stub> health_;
 };
 

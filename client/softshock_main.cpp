@@ -99,6 +99,15 @@ const std::vector<Command>& commands() {
        1,
        2,
        cmd_grid},
+      {"mesh",
+       "upload FILE.msh | list | delete ID",
+       "meshes on the daemon for geometry.mesh_id (upload prints the id; the same bytes give\n"
+       "           the same id). submit and grid submit upload a local geometry.mesh_file "
+       "themselves",
+       {},
+       1,
+       2,
+       cmd_mesh},
       {"query",
        "[--where 'NAME OP VALUE']... [--state S] [--grid ID] [--order-by 'NAME [desc]'] "
        "[--limit N] [--csv]",

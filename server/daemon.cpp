@@ -13,12 +13,14 @@
 #include <sstream>
 #include <thread>
 
+#include "grpc/health/v1/health.pb.h"
 #include "server/auth.hpp"
 #include "server/catalogue.hpp"
 #include "server/daemon_config.hpp"
 #include "server/job_events.hpp"
 #include "server/job_runner.hpp"
 #include "server/log.hpp"
+#include "server/mesh_service.hpp"
 #include "server/scheduler.hpp"
 #include "server/simulation_service.hpp"
 #include "server/slurm_executor.hpp"
@@ -28,6 +30,10 @@ namespace softshock::server {
 namespace fs = std::filesystem;
 
 namespace {
+
+// Largest mesh a client may upload (held in memory while it arrives): 64 MiB is an ASCII .msh of
+// roughly 800,000 triangles; the thesis's meshes are under 2 MB.
+constexpr int64_t kMaxMeshUploadBytes = 64ll << 20;
 
 std::string read_file(const std::string& path, const char* what) {
   std::ifstream in(path, std::ios::binary);
@@ -58,7 +64,9 @@ struct Daemon::Impl {
   std::unique_ptr<JobRunner> runner;
   std::unique_ptr<Authenticator> auth;
   std::unique_ptr<Executor> scheduler;  // local or slurm
+  std::unique_ptr<MeshStore> meshes;
   std::unique_ptr<SimulationService> service;
+  std::unique_ptr<MeshService> mesh_service;
   std::unique_ptr<grpc::Server> server;
   int port = 0;
   bool stopped = false;
@@ -174,8 +182,11 @@ Daemon::Daemon(DaemonConfig config) : impl_(std::make_unique<Impl>()) {
   ServiceConfig sc;
   sc.limits = rc.limits;
   sc.max_streams = config.max_streams;
+  d.meshes = std::make_unique<MeshStore>(d.runner->meshes_dir(), kMaxMeshUploadBytes,
+                                         rc.limits.max_elements);
   d.service = std::make_unique<SimulationService>(sc, *d.catalogue, *d.scheduler, d.events,
-                                                  *d.runner, *d.auth);
+                                                  *d.runner, *d.auth, *d.meshes);
+  d.mesh_service = std::make_unique<MeshService>(*d.meshes, *d.catalogue, *d.auth);
 
   std::ostringstream counts;
   for (const auto& [state, n] : d.catalogue->counts())
@@ -199,6 +210,9 @@ Daemon::~Daemon() {
 void Daemon::start() {
   Impl& d = *impl_;
   grpc::EnableDefaultHealthCheckService(true);
+  // The built-in health service has no protobuf descriptors; touching the generated ones links
+  // health.proto into the descriptor pool, so reflection can describe grpc.health.v1.Health.
+  (void)grpc::health::v1::HealthCheckRequest::descriptor();
   grpc::reflection::InitProtoReflectionServerBuilderPlugin();
   std::shared_ptr<grpc::ServerCredentials> creds;
   if (!d.config.tls_cert.empty()) {
@@ -215,6 +229,7 @@ void Daemon::start() {
   builder.AddChannelArgument(GRPC_ARG_ALLOW_REUSEPORT, 0);
   builder.AddListeningPort(d.config.listen, creds, &d.port);
   builder.RegisterService(d.service.get());
+  builder.RegisterService(d.mesh_service.get());
   builder.SetMaxReceiveMessageSize(d.config.max_receive_bytes);
   d.server = builder.BuildAndStart();
   if (!d.server || d.port == 0) {

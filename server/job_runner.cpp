@@ -265,13 +265,19 @@ void JobRunner::run(const std::string& id, CancelToken& cancel) {
   Problem problem;
   SolverOptions options;
   try {
-    spec = normalize_spec(parse_stored_spec(job->spec_json), config_.limits);
+    // mesh_file is validated and read under DATA/meshes/, never the working directory; the
+    // run's own record (spec) keeps the relative name.
+    spec = parse_stored_spec(job->spec_json);
     v1::RunSpec meshing_spec = spec;
     if (spec.geometry().shape_case() == v1::Geometry::kMeshFile) {
       check_mesh_file(spec);
       meshing_spec.mutable_geometry()->set_mesh_file(
           (fs::path(meshes_dir()) / spec.geometry().mesh_file()).string());
     }
+    meshing_spec = normalize_spec(meshing_spec, config_.limits);
+    const std::string relative = spec.geometry().mesh_file();
+    spec = meshing_spec;
+    if (!relative.empty()) spec.mutable_geometry()->set_mesh_file(relative);
     problem = make_problem(meshing_spec, config_.limits);
     options = make_options(spec);
     options.threads = std::max(1, config_.solver_threads);

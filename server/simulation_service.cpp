@@ -17,6 +17,7 @@
 #include "server/field_raster.hpp"
 #include "server/grid.hpp"
 #include "server/log.hpp"
+#include "server/resource_name.hpp"
 #include "server/spec_hash.hpp"
 #include "solver/io/result_file.hpp"
 
@@ -47,18 +48,6 @@ Status invalid(const std::string& field, const std::string& rule) {
 }
 Status not_found(const std::string& id) {
   return {StatusCode::NOT_FOUND, "job " + id + " not found"};
-}
-
-// "jobs/{id}" (or "grids/{id}") or the bare id; ids are [A-Za-z0-9_-]{1,64} (they name folders
-// on disk).
-bool parse_id(const std::string& name, std::string* id, const std::string& collection = "jobs/") {
-  std::string s = name.rfind(collection, 0) == 0 ? name.substr(collection.size()) : name;
-  if (s.empty() || s.size() > 64) return false;
-  for (unsigned char c : s) {
-    if (!std::isalnum(c) && c != '-' && c != '_') return false;
-  }
-  *id = std::move(s);
-  return true;
 }
 
 int64_t timestamp_us(const google::protobuf::Timestamp& t) {
@@ -215,13 +204,15 @@ class StreamSlot {
 
 SimulationService::SimulationService(ServiceConfig config, Catalogue& catalogue,
                                      Executor& scheduler, JobEvents& events,
-                                     const JobRunner& runner, const Authenticator& auth)
+                                     const JobRunner& runner, const Authenticator& auth,
+                                     const MeshStore& meshes)
     : config_(config),
       catalogue_(catalogue),
       scheduler_(scheduler),
       events_(events),
       runner_(runner),
       auth_(auth),
+      meshes_(meshes),
       id_random_(std::random_device{}()) {}
 
 std::string SimulationService::new_job_id() {
@@ -286,7 +277,10 @@ std::optional<JobRecord> SimulationService::wait_terminal(const std::string& id,
 
 Status SimulationService::SubmitJob(grpc::ServerContext* ctx, const v1::SubmitJobRequest* req,
                                     v1::Job* resp) {
-  return guarded(auth_, ctx, "SubmitJob", [&] { return submit(ctx, *req, resp); });
+  return guarded(auth_, ctx, "SubmitJob", [&] {
+    auto hold = meshes_.hold_for_submit();  // its mesh cannot be deleted before the insert
+    return submit(ctx, *req, resp);
+  });
 }
 
 namespace {
@@ -365,8 +359,7 @@ Status SimulationService::submit(grpc::ServerContext* ctx, const v1::SubmitJobRe
   }
   CanonicalSpec spec;
   try {
-    spec = canonical_spec(req.spec(), config_.limits);
-    check_mesh_file(spec.spec);
+    spec = daemon_canonical_spec(req.spec(), config_.limits, meshes_);
   } catch (const SpecError& e) {
     return spec_invalid(ctx, "spec", e);
   }
@@ -422,7 +415,7 @@ Status SimulationService::GetJob(grpc::ServerContext* ctx, const v1::GetJobReque
                                  v1::Job* resp) {
   return guarded(auth_, ctx, "GetJob", [&]() -> Status {
     std::string id;
-    if (!parse_id(req->id(), &id)) return invalid("id", "not a job name");
+    if (Status st = requested_id(*req, "jobs/", &id); !st.ok()) return st;
     auto record = catalogue_.get(id);
     if (!record) return not_found(id);
     fill_job(*record, resp);
@@ -475,7 +468,7 @@ Status SimulationService::WatchJob(grpc::ServerContext* ctx, const v1::WatchJobR
                                    grpc::ServerWriter<v1::Job>* writer) {
   return guarded(auth_, ctx, "WatchJob", [&]() -> Status {
     std::string id;
-    if (!parse_id(req->id(), &id)) return invalid("id", "not a job name");
+    if (Status st = requested_id(*req, "jobs/", &id); !st.ok()) return st;
     StreamSlot slot(*this);
     if (!slot.acquired()) {
       return {StatusCode::RESOURCE_EXHAUSTED,
@@ -527,7 +520,7 @@ Status SimulationService::CancelJob(grpc::ServerContext* ctx, const v1::CancelJo
                                     v1::Job* resp) {
   return guarded(auth_, ctx, "CancelJob", [&]() -> Status {
     std::string id;
-    if (!parse_id(req->id(), &id)) return invalid("id", "not a job name");
+    if (Status st = requested_id(*req, "jobs/", &id); !st.ok()) return st;
     return cancel(id, resp);
   });
 }
@@ -572,7 +565,7 @@ Status SimulationService::DeleteJob(grpc::ServerContext* ctx, const v1::DeleteJo
                                     v1::DeleteJobResponse*) {
   return guarded(auth_, ctx, "DeleteJob", [&]() -> Status {
     std::string id;
-    if (!parse_id(req->id(), &id)) return invalid("id", "not a job name");
+    if (Status st = requested_id(*req, "jobs/", &id); !st.ok()) return st;
     return erase(id);
   });
 }
@@ -623,7 +616,7 @@ Status SimulationService::GetJobSummary(grpc::ServerContext* ctx,
                                         const v1::GetJobSummaryRequest* req, v1::JobSummary* resp) {
   return guarded(auth_, ctx, "GetJobSummary", [&]() -> Status {
     std::string id;
-    if (!parse_id(req->id(), &id)) return invalid("id", "not a job name");
+    if (Status st = requested_id(*req, "jobs/", &id); !st.ok()) return st;
     return summary(id, resp);
   });
 }
@@ -651,7 +644,7 @@ Status SimulationService::GetTimeSeries(grpc::ServerContext* ctx,
 
 Status SimulationService::time_series(const v1::GetTimeSeriesRequest& req, v1::TimeSeries* resp) {
   std::string id, path;
-  if (!parse_id(req.id(), &id)) return invalid("id", "not a job name");
+  if (Status st = requested_id(req, "jobs/", &id); !st.ok()) return st;
   if (req.every() < 0) return invalid("every", "must not be negative");
   if (Status s = result_file(id, &path); !s.ok()) return s;
   ResultReader reader(path);
@@ -695,7 +688,7 @@ Status SimulationService::GetModes(grpc::ServerContext* ctx, const v1::GetModesR
 
 Status SimulationService::modes(const v1::GetModesRequest& req, v1::Modes* resp) {
   std::string id, path;
-  if (!parse_id(req.id(), &id)) return invalid("id", "not a job name");
+  if (Status st = requested_id(req, "jobs/", &id); !st.ok()) return st;
   if (req.every() < 0) return invalid("every", "must not be negative");
   if (req.mode_min() < 0) return invalid("mode_min", "must not be negative");
   if (req.mode_max() < 0) return invalid("mode_max", "must not be negative");
@@ -749,7 +742,7 @@ Status SimulationService::GetField(grpc::ServerContext* ctx, const v1::GetFieldR
 Status SimulationService::field(grpc::ServerContext* ctx, const v1::GetFieldRequest& req,
                                 grpc::ServerWriter<v1::FieldChunk>* writer) {
   std::string id, path;
-  if (!parse_id(req.id(), &id)) return invalid("id", "not a job name");
+  if (Status st = requested_id(req.job(), req.id(), "jobs/", &id); !st.ok()) return st;
   auto kind_it = field_kinds().find(req.name());
   if (kind_it == field_kinds().end()) {
     std::string list;
@@ -915,7 +908,10 @@ void SimulationService::fill_grid(const GridRecord& r, v1::Grid* grid) const {
 
 Status SimulationService::SubmitGrid(grpc::ServerContext* ctx, const v1::SubmitGridRequest* req,
                                      v1::Grid* resp) {
-  return guarded(auth_, ctx, "SubmitGrid", [&] { return submit_grid(ctx, *req, resp); });
+  return guarded(auth_, ctx, "SubmitGrid", [&] {
+    auto hold = meshes_.hold_for_submit();
+    return submit_grid(ctx, *req, resp);
+  });
 }
 
 Status SimulationService::submit_grid(grpc::ServerContext* ctx, const v1::SubmitGridRequest& req,
@@ -930,13 +926,14 @@ Status SimulationService::submit_grid(grpc::ServerContext* ctx, const v1::Submit
   CanonicalSpec base;
   GridPlan plan;
   try {
-    base = canonical_spec(req.base_spec(), config_.limits);
-    check_mesh_file(base.spec);
+    base = daemon_canonical_spec(req.base_spec(), config_.limits, meshes_);
   } catch (const SpecError& e) {
     return spec_invalid(ctx, "base_spec", e);
   }
   try {
-    plan = expand_grid(base.spec, req.axes(), config_.limits);
+    // Points are validated against the mesh file itself, then stored with its relative name.
+    plan = expand_grid(with_absolute_mesh_file(base.spec, meshes_), req.axes(), config_.limits);
+    for (auto& point : plan.points) with_relative_mesh_file(point, meshes_);
   } catch (const SpecError& e) {
     return spec_invalid(ctx, "", e);
   }
@@ -1031,7 +1028,7 @@ Status SimulationService::GetGrid(grpc::ServerContext* ctx, const v1::GetGridReq
                                   v1::Grid* resp) {
   return guarded(auth_, ctx, "GetGrid", [&]() -> Status {
     std::string id;
-    if (!parse_id(req->id(), &id, "grids/")) return invalid("id", "not a grid name");
+    if (Status st = requested_id(*req, "grids/", &id); !st.ok()) return st;
     auto record = catalogue_.get_grid(id);
     if (!record) return grid_not_found(id);
     fill_grid(*record, resp);
@@ -1063,7 +1060,7 @@ Status SimulationService::CancelGrid(grpc::ServerContext* ctx, const v1::CancelG
                                      v1::Grid* resp) {
   return guarded(auth_, ctx, "CancelGrid", [&]() -> Status {
     std::string id;
-    if (!parse_id(req->id(), &id, "grids/")) return invalid("id", "not a grid name");
+    if (Status st = requested_id(*req, "grids/", &id); !st.ok()) return st;
     return cancel_grid(id, resp);
   });
 }
@@ -1102,7 +1099,7 @@ Status SimulationService::GetGridReduction(grpc::ServerContext* ctx,
 Status SimulationService::grid_reduction(const v1::GetGridReductionRequest& req,
                                          v1::GridReduction* resp) {
   std::string id;
-  if (!parse_id(req.id(), &id, "grids/")) return invalid("id", "not a grid name");
+  if (Status st = requested_id(req, "grids/", &id); !st.ok()) return st;
   const std::string name = req.quantity().empty() ? grid_quantities().front().name : req.quantity();
   const GridQuantity* quantity = find_grid_quantity(name);
   if (quantity == nullptr) {

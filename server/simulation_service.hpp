@@ -13,6 +13,7 @@
 #include "server/executor.hpp"
 #include "server/job_events.hpp"
 #include "server/job_runner.hpp"
+#include "server/mesh_store.hpp"
 #include "server/scheduler.hpp"
 #include "softshock/v1/service.grpc.pb.h"
 #include "solver/run_spec.hpp"
@@ -29,7 +30,8 @@ struct ServiceConfig {
 class SimulationService final : public v1::SimulationService::Service {
  public:
   SimulationService(ServiceConfig config, Catalogue& catalogue, Executor& scheduler,
-                    JobEvents& events, const JobRunner& runner, const Authenticator& auth);
+                    JobEvents& events, const JobRunner& runner, const Authenticator& auth,
+                    const MeshStore& meshes);
 
   grpc::Status SubmitJob(grpc::ServerContext* ctx, const v1::SubmitJobRequest* req,
                          v1::Job* resp) override;
@@ -101,6 +103,7 @@ class SimulationService final : public v1::SimulationService::Service {
   JobEvents& events_;
   const JobRunner& runner_;
   const Authenticator& auth_;
+  const MeshStore& meshes_;  // uploaded meshes, and where spec mesh files resolve
   std::atomic<int> active_streams_{0};
   std::mutex id_mutex_;
   std::mt19937_64 id_random_;

@@ -109,6 +109,10 @@ int main(int argc, char** argv) {
   try {
     spec = softshock::read_spec_file(spec_path);
     if (threads > 0) spec.mutable_run()->set_threads(threads);
+    if (!spec.geometry().mesh_id().empty()) {  // else the default disk would silently run
+      throw softshock::SpecError("geometry.mesh_id",
+                                 "names a mesh uploaded to softshockd; here use mesh_file");
+    }
     spec = softshock::normalize_spec(spec);
     problem = softshock::make_problem(spec);
   } catch (const softshock::SpecError& e) {

@@ -19,6 +19,8 @@
 #include <string_view>
 #include <utility>
 
+#include "solver/io/durable_file.hpp"
+
 namespace softshock {
 
 namespace detail {
@@ -33,7 +35,10 @@ namespace {
 
 namespace fs = std::filesystem;
 
-constexpr int kFormatVersion = 1;
+// 2: node vectors are N x 3 (z = 0), so ParaView's default XDMF reader offers Warp By Vector.
+// Version 1 files (N x 2) are still read.
+constexpr int kFormatVersion = 2;
+constexpr std::size_t kVectorColumns = 3;
 constexpr const char* kH5Name = "result.h5";
 constexpr const char* kXdmfName = "result.xdmf";
 
@@ -48,7 +53,8 @@ constexpr std::size_t kMinChunkedBytes = 16 * 1024;
 constexpr std::size_t kTargetChunkBytes = 256 * 1024;
 constexpr unsigned kDeflateLevel = 1;
 
-// The per-frame fields: dataset name, node-centred (N x 2) or per element (E), member, units.
+// The per-frame fields: dataset name, node-centred (N x 2 in memory, N x 3 on disk) or per
+// element (E), member, units.
 struct FieldSpec {
   const char* name;
   bool nodal;
@@ -366,48 +372,6 @@ std::vector<T> read_all(hid_t file, const std::string& name, hid_t mem_type,
   return values;
 }
 
-// ---- files ------------------------------------------------------------------------------------
-
-[[noreturn]] void fail_errno(const std::string& what, const fs::path& p) {
-  throw std::runtime_error(what + " " + p.string() + ": " + std::strerror(errno));
-}
-
-void fsync_path(const fs::path& p, bool directory) {
-  const int fd = ::open(p.c_str(), O_RDONLY | O_CLOEXEC | (directory ? O_DIRECTORY : 0));
-  if (fd < 0) fail_errno("cannot open for fsync", p);
-  if (::fsync(fd) != 0) {
-    const int saved = errno;
-    ::close(fd);
-    errno = saved;
-    fail_errno("cannot fsync", p);
-  }
-  ::close(fd);
-}
-
-void write_file_synced(const fs::path& p, const std::string& content) {
-  const int fd = ::open(p.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
-  if (fd < 0) fail_errno("cannot create", p);
-  std::size_t done = 0;
-  while (done < content.size()) {
-    const ssize_t n = ::write(fd, content.data() + done, content.size() - done);
-    if (n < 0 && errno == EINTR) continue;
-    if (n < 0) {
-      const int saved = errno;
-      ::close(fd);
-      errno = saved;
-      fail_errno("cannot write", p);
-    }
-    done += static_cast<std::size_t>(n);
-  }
-  if (::fsync(fd) != 0 || ::close(fd) != 0) fail_errno("cannot fsync/close", p);
-}
-
-void rename_file(const fs::path& from, const fs::path& to) {
-  if (std::rename(from.c_str(), to.c_str()) != 0) {
-    fail_errno("cannot rename " + from.string() + " to", to);
-  }
-}
-
 // File access properties: close everything still open with the file (so H5Fclose really
 // releases it before the fsync and rename), and use file locks where the filesystem has them
 // without failing where it has none (NFS without lockd).
@@ -451,6 +415,7 @@ struct ResultWriter::Impl {
   Hid file, fields;  // open from construction until finish() closes them
   std::vector<std::string> frame_groups;
   std::vector<double> frame_times;
+  std::vector<double> xyz;  // a node vector padded with z = 0, reused across frames
   bool finished = false;
   std::string broken;  // set when an operation failed half-way: the file is not to be trusted
 
@@ -556,8 +521,17 @@ void ResultWriter::write_frame(const FieldFrame& frame) {
     write_double_attr(g.get(), "time", frame.time_s, path);
     for (const FieldSpec& f : kFields) {
       const std::vector<double>& v = frame.*f.member;
-      write_doubles(g.get(), f.name, v.data(),
-                    f.nodal ? matrix_shape(m.nodes, 2) : vector_shape(m.elements), f.units, path);
+      if (!f.nodal) {
+        write_doubles(g.get(), f.name, v.data(), vector_shape(m.elements), f.units, path);
+        continue;
+      }
+      m.xyz.assign(kVectorColumns * m.nodes, 0.0);
+      for (std::size_t i = 0; i < m.nodes; ++i) {
+        m.xyz[kVectorColumns * i] = v[2 * i];
+        m.xyz[kVectorColumns * i + 1] = v[2 * i + 1];
+      }
+      write_doubles(g.get(), f.name, m.xyz.data(), matrix_shape(m.nodes, kVectorColumns), f.units,
+                    path);
     }
   } catch (const std::exception& e) {
     m.broken = e.what();
@@ -818,8 +792,23 @@ std::vector<double> ResultReader::field(std::size_t frame, const std::string& na
                             std::to_string(impl_->info.frame_times.size()) + " in " + impl_->path);
   }
   auto lock = lock_hdf5();
-  return read_all<double>(impl_->file.get(), "/fields/" + frame_group_name(frame) + "/" + name,
-                          H5T_NATIVE_DOUBLE, impl_->path);
+  std::vector<hsize_t> dims;
+  const std::string dataset = "/fields/" + frame_group_name(frame) + "/" + name;
+  std::vector<double> v =
+      read_all<double>(impl_->file.get(), dataset, H5T_NATIVE_DOUBLE, impl_->path, &dims);
+  if (!known->nodal) return v;
+  // Callers get (x, y) pairs from either version: N x 2 (version 1) or N x 3 (z dropped).
+  const std::size_t cols = dims.size() == 2 ? static_cast<std::size_t>(dims[1]) : 0;
+  if (cols != 2 && cols != kVectorColumns) {
+    throw std::runtime_error("HDF5: " + dataset + " is not N x 2 or N x 3 (" + impl_->path + ")");
+  }
+  const std::size_t n = static_cast<std::size_t>(dims[0]);
+  for (std::size_t i = 0; cols == kVectorColumns && i < n; ++i) {
+    v[2 * i] = v[kVectorColumns * i];
+    v[2 * i + 1] = v[kVectorColumns * i + 1];
+  }
+  v.resize(2 * n);
+  return v;
 }
 
 }  // namespace softshock

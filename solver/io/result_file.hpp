@@ -66,7 +66,8 @@ class ResultReader {
   std::vector<double> mode_times() const;
   // Row-major T x (M+1) amplitudes.
   std::vector<double> mode_amplitudes(std::size_t& rows, std::size_t& cols) const;
-  // A field of frame k: "displacement" and "velocity" are N x 2 interleaved; "J",
+  // A field of frame k: "displacement" and "velocity" are N x 2 interleaved (whatever the
+  // format_version: the stored z = 0 column of version 2 is dropped); "J",
   // "mean_stress", "radial_stress", "hoop_stress", "von_mises" are per element.
   std::vector<double> field(std::size_t frame, const std::string& name) const;
 

@@ -50,7 +50,8 @@ std::string mesh_elements(const std::string& h5_file, std::size_t nodes, std::si
 // h5_file: the HDF5 file name relative to the XDMF file (readers resolve it against the XDMF
 // file's folder, so the pair can be moved together). frame_groups[k] is the group path of frame
 // k (e.g. "/fields/frame_00000") and frame_times[k] its time. attributes: (dataset name,
-// node-centred); node-centred fields are N x 2 vectors, the others per-element scalars.
+// node-centred); node-centred fields are N x 3 vectors (z = 0: ParaView's Xdmf3 readers and
+// Warp By Vector need three components), the others per-element scalars.
 std::string xdmf_document(const std::string& h5_file, std::size_t nodes, std::size_t elements,
                           const std::vector<std::string>& frame_groups,
                           const std::vector<double>& frame_times,
@@ -82,7 +83,7 @@ std::string xdmf_document(const std::string& h5_file, std::size_t nodes, std::si
       for (const auto& [field, nodal] : attributes) {
         x += "        <Attribute Name=\"" + field + "\" AttributeType=\"" +
              (nodal ? "Vector\" Center=\"Node\">\n" : "Scalar\" Center=\"Cell\">\n");
-        x += data_item(h5_file, group + "/" + field, nodal ? n + " 2" : e, false, "          ");
+        x += data_item(h5_file, group + "/" + field, nodal ? n + " 3" : e, false, "          ");
         x += "        </Attribute>\n";
       }
       x += "      </Grid>\n";

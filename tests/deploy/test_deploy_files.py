@@ -75,6 +75,7 @@ class DockerfileTest(unittest.TestCase):
             top = f.read()
         self.assertIn("CMakeLists.txt", copied)
         subdirs = re.findall(r"add_subdirectory\((\w+)\)", top)
+        subdirs += re.findall(r"include\((\w+)/", top)  # e.g. packaging/cpack.cmake
         self.assertIn("server", subdirs)
         runs = " ".join(i.args for i in self.build.all("RUN"))
         for d in subdirs:

@@ -5,8 +5,8 @@ Usage: check_xdmf_meshio.py RESULT.xdmf NODES ELEMENTS T0 T1 [T2 ...]
 
 Checks the mesh (NODES points, one triangle block of ELEMENTS cells), that there is one frame
 per expected time and each frame's <Time> equals it (relative 1e-12), that the point data
-"displacement" and "velocity" are NODES x 2 and that the five cell scalars have one value per
-triangle. Exits 0 when all hold, 1 otherwise (with the reasons on stderr).
+"displacement" and "velocity" are NODES x 3 with z = 0 (format_version 2) and that the five
+cell scalars have one value per triangle. Exits 0 when all hold, 1 otherwise (with the reasons on stderr).
 
 Run with Debian's interpreter (/usr/bin/python3): python3-meshio and python3-h5py are apt
 packages that a pyenv or venv Python does not see.
@@ -41,8 +41,10 @@ def check(path, nodes, elements, times):
                 problems.append(f"frame {k}: time {t!r}, expected {times[k]!r}")
             for name in ("displacement", "velocity"):
                 shape = point_data[name].shape if name in point_data else None
-                if shape != (nodes, 2):
+                if shape != (nodes, 3):
                     problems.append(f"frame {k}: point data {name} has shape {shape}")
+                elif (point_data[name][:, 2] != 0).any():
+                    problems.append(f"frame {k}: point data {name} has a non-zero z")
             for name in CELL_SCALARS:
                 blocks = cell_data.get(name)
                 if blocks is None or len(blocks) != 1 or blocks[0].shape != (elements,):

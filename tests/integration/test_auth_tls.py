@@ -54,6 +54,20 @@ class TokenTest(DaemonTestCase):
         # Health stays open without a token, as load balancers and kubelet probes send none.
         self.assertEqual(self.cli("health").returncode, 0)
 
+    def test_mesh_service_needs_the_token(self):
+        msh = self.write_json("$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$Nodes\n3\n1 0 0 0\n"
+                              "2 1e-4 0 0\n3 0 1e-4 0\n$EndNodes\n$Elements\n1\n"
+                              "1 2 2 0 1 1 2 3\n$EndElements\n", "tri.msh")
+        for args in (["mesh", "upload", msh], ["mesh", "list"], ["mesh", "delete", "x" * 64]):
+            p = self.cli(*args)
+            self.assertEqual(p.returncode, 1, args)
+            self.assertIn("UNAUTHENTICATED", p.stderr)
+        with self.assertRaises(SoftshockError) as e:
+            self.client().upload_mesh(msh)
+        self.assertEqual(e.exception.code, grpc.StatusCode.UNAUTHENTICATED)
+        mesh_id = self.cli_ok("--token-file", self.token_file, "mesh", "upload", msh).stdout
+        self.assertEqual([m.id for m in self.client(token=TOKEN).list_meshes()], [mesh_id.strip()])
+
     def test_empty_token_file_is_a_usage_error(self):
         empty = self.write_json("", "empty")
         p = self.cli("--token-file", empty, "list")

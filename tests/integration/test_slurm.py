@@ -1,7 +1,7 @@
 """End to end: softshockd with the slurm executor against a real one-node Slurm started by
 scripts/slurm-dev (docs/cluster.md). A grid through Slurm matches the local executor's; cancel
 reaches Slurm; a solver failure on the cluster is FAILED with Slurm's and the solver's reason;
-kill -9 of the daemon mid-grid loses and duplicates nothing.
+an uploaded mesh runs on the cluster; kill -9 of the daemon mid-grid loses and duplicates nothing.
 
 Without a usable Slurm (packages missing, not root, daemons refuse to start) the whole file
 prints "SKIPPED: <reason>" and exits 77, which CTest reports as skipped (SKIP_RETURN_CODE)."""
@@ -131,6 +131,19 @@ class SlurmTest(DaemonTestCase):
         self.assertEqual(final.reason, "SLURM_FAILED")
         self.assertIn("element inversion", final.error)
         self.assertIn("Slurm job", final.error)
+
+    def test_uploaded_mesh_runs_on_the_cluster(self):
+        from test_meshes import mesh_rounded_square  # the client's own Gmsh
+        msh = os.path.join(self.tmp, "square.msh")
+        mesh_rounded_square(msh)
+        c = self.client()
+        job = c.submit({"geometry": {"meshFile": msh},
+                        "run": {"endTime": 1e-8, "outputInterval": 5e-9}})  # uploaded first
+        final = c.wait(job.id, timeout=120)
+        self.assertEqual(state_name(final), "SUCCEEDED", final.error)
+        [mesh] = c.list_meshes()
+        self.assertEqual(final.spec.geometry.mesh_file, f"uploads/{mesh.id}.msh")
+        self.assertEqual(c.summary(job.id)["elements"], mesh.elements)
 
     def test_kill9_mid_grid_restart_no_duplicates(self):
         c = self.client()

@@ -5,6 +5,7 @@ Run by ctest with SOFTSHOCK_SOLVE pointing at the binary (Debian's /usr/bin/pyth
 import json
 import os
 import subprocess
+import sys
 import tempfile
 import unittest
 
@@ -50,6 +51,46 @@ class SoftshockSolve(unittest.TestCase):
             self.assertEqual(len(h5["fields"]), 5)  # 0, 10, 20, 30, 40 ns
         self.assertTrue(os.path.exists(os.path.join(self.out, "result.xdmf")))
         self.assertFalse(os.path.exists(os.path.join(self.out, "result.h5.tmp")))
+        # A real run's XDMF as ParaView's default reader needs it, and as meshio reads it.
+        checks = os.path.join(os.environ["SOFTSHOCK_SOURCE_DIR"], "tests", "integration")
+        xdmf = os.path.join(self.out, "result.xdmf")
+        r = subprocess.run([sys.executable, os.path.join(checks, "check_xdmf_structure.py"), xdmf],
+                           capture_output=True, text=True)
+        self.assertEqual(r.returncode, 0, r.stderr)
+        with h5py.File(os.path.join(self.out, "result.h5"), "r") as h5:
+            shape = [str(len(h5["mesh/nodes"])), str(len(h5["mesh/triangles"]))]
+            times = [repr(float(h5["fields"][k].attrs["time"])) for k in sorted(h5["fields"])]
+        r = subprocess.run([sys.executable, os.path.join(checks, "check_xdmf_meshio.py"), xdmf]
+                           + shape + times, capture_output=True, text=True)
+        self.assertEqual(r.returncode, 0, r.stderr)
+
+    def test_python_reader_reads_format_versions_1_and_2_alike(self):
+        from softshock_client.results import ResultFile
+        r = solve({"geometry": {"target_elements": 300},
+                   "run": {"end_time": 2e-8, "output_interval": 1e-8}}, self.out)
+        self.assertEqual(r.returncode, 0, r.stderr)
+        h5_path = os.path.join(self.out, "result.h5")
+        with ResultFile(h5_path) as res:
+            self.assertEqual(res.format_version, 2)
+            u2 = res.field("displacement")
+            nodes, _ = res.mesh()
+        self.assertEqual(u2.shape, (len(nodes), 2))
+        self.assertGreater(abs(u2).max(), 0)
+        # Rewrite the vectors as format_version 1 stored them (N x 2).
+        with h5py.File(h5_path, "r+") as h5:
+            h5.attrs["format_version"] = 1
+            for k in h5["fields"]:
+                for name in ("displacement", "velocity"):
+                    xy = h5["fields"][k][name][:, :2]
+                    del h5["fields"][k][name]
+                    h5["fields"][k][name] = xy
+        with ResultFile(h5_path) as res:
+            self.assertEqual(res.format_version, 1)
+            self.assertTrue((res.field("displacement") == u2).all())
+        with h5py.File(h5_path, "r+") as h5:
+            h5.attrs["format_version"] = 3
+        with self.assertRaisesRegex(ValueError, "format_version 3"):
+            ResultFile(h5_path)
 
     def test_invalid_spec_exits_2_naming_the_field(self):
         r = solve({"geometry": {"disk": {"radius": -1e-5}}}, self.out)

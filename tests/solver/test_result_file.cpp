@@ -532,7 +532,7 @@ TEST(ResultFile, LayoutMatchesTheDocumentedContract) {
     H5Aclose(c);
     EXPECT_EQ(steps, 123456789012);
     EXPECT_EQ(frames, 3);
-    EXPECT_EQ(version, 1);
+    EXPECT_EQ(version, 2);
   }
 
   const hsize_t n = mesh.node_count(), e = mesh.element_count();
@@ -577,8 +577,9 @@ TEST(ResultFile, LayoutMatchesTheDocumentedContract) {
       const bool nodal = name == "displacement" || name == "velocity";
       EXPECT_EQ(s.type_class, H5T_FLOAT) << name;
       EXPECT_EQ(s.type_size, 8u) << name;
+      // Node vectors are N x 3 (z = 0) since format_version 2: ParaView's Warp By Vector.
       const std::vector<hsize_t> dims =
-          nodal ? std::vector<hsize_t>{n, 2} : std::vector<hsize_t>{e};
+          nodal ? std::vector<hsize_t>{n, 3} : std::vector<hsize_t>{e};
       EXPECT_EQ(s.dims, dims) << name;
       EXPECT_TRUE(s.has_units) << name;
       ASSERT_EQ(s.layout, H5D_CHUNKED) << name;
@@ -589,6 +590,62 @@ TEST(ResultFile, LayoutMatchesTheDocumentedContract) {
       EXPECT_LE(chunk_bytes, 1024u * 1024) << name;
     }
   }
+}
+
+// The stored N x 3 vector holds the (x, y) pairs bit for bit and an exact zero z column.
+TEST(ResultFile, NodeVectorsAreStoredWithAZeroZColumn) {
+  ScratchDir dir;
+  const Mesh mesh = two_triangles();
+  write_result(dir.str(), mesh, {0.0, 0.5}, make_history(2, 1));
+  H5File f(dir.str("result.h5"));
+  ASSERT_GE(f.id, 0);
+  const std::size_t n = mesh.node_count();
+  for (const char* name : {"displacement", "velocity"}) {
+    const std::string path = std::string("/fields/frame_00001/") + name;
+    ASSERT_EQ(shape_of(f.id, path).dims, (std::vector<hsize_t>{n, 3})) << name;
+    std::vector<double> xyz(3 * n, 1.0);
+    const hid_t ds = H5Dopen2(f.id, path.c_str(), H5P_DEFAULT);
+    ASSERT_GE(ds, 0) << path;
+    ASSERT_GE(H5Dread(ds, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, xyz.data()), 0);
+    H5Dclose(ds);
+    const std::vector<double> want = field_of(make_frame(mesh, 0.5, 1.0), name);
+    std::vector<double> xy, z;
+    for (std::size_t i = 0; i < n; ++i) {
+      xy.insert(xy.end(), {xyz[3 * i], xyz[3 * i + 1]});
+      z.push_back(xyz[3 * i + 2]);
+    }
+    expect_same_bits(xy, want, path);
+    expect_same_bits(z, std::vector<double>(n, 0.0), path + " z");
+  }
+}
+
+// Files written before format_version 2 (node vectors N x 2) still read, with the same values.
+TEST(ResultFile, ReadsFormatVersion1NodeVectors) {
+  ScratchDir dir;
+  const Mesh mesh = two_triangles();
+  write_result(dir.str(), mesh, {0.0}, make_history(2, 1));
+  const std::vector<double> disp = make_frame(mesh, 0.0, 0.0).displacement;
+  {
+    // Rewrite the file as version 1 wrote it: N x 2 displacement, format_version 1.
+    const hid_t file = H5Fopen(dir.str("result.h5").c_str(), H5F_ACC_RDWR, H5P_DEFAULT);
+    ASSERT_GE(file, 0);
+    ASSERT_GE(H5Ldelete(file, "/fields/frame_00000/displacement", H5P_DEFAULT), 0);
+    const hsize_t dims[2] = {mesh.node_count(), 2};
+    const hid_t space = H5Screate_simple(2, dims, nullptr);
+    const hid_t ds = H5Dcreate2(file, "/fields/frame_00000/displacement", H5T_IEEE_F64LE, space,
+                                H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
+    ASSERT_GE(H5Dwrite(ds, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, disp.data()), 0);
+    H5Dclose(ds);
+    H5Sclose(space);
+    const int32_t one = 1;
+    const hid_t a = H5Aopen(file, "format_version", H5P_DEFAULT);
+    ASSERT_GE(H5Awrite(a, H5T_NATIVE_INT32, &one), 0);
+    H5Aclose(a);
+    H5Fclose(file);
+  }
+  ResultReader reader(dir.str("result.h5"));
+  expect_same_bits(reader.field(0, "displacement"), disp, "version 1 displacement");
+  expect_same_bits(reader.field(0, "velocity"), make_frame(mesh, 0.0, 0.0).velocity, "velocity");
 }
 
 TEST(ResultFile, XdmfPointsAtTheFramesOfTheHdf5File) {
@@ -625,6 +682,19 @@ TEST(ResultFileXdmf, MeshioReadsMeshAndFrames) {
   const int rc = std::system(cmd.str().c_str());
   ASSERT_NE(rc, -1);
   EXPECT_TRUE(WIFEXITED(rc) && WEXITSTATUS(rc) == 0) << cmd.str() << " -> " << rc;
+}
+
+// What ParaView's default reader needs (3-component node vectors, Triangle topology, one
+// temporal collection), checked on the XML and against the HDF5 shapes.
+TEST(ResultFileXdmf, StructureSuitsParaViewsDefaultReader) {
+  ScratchDir dir;
+  write_result(dir.str(), make_rectangle_mesh(1.0, 0.5, 8, 4), {0.0, 1e-5, 2e-5},
+               make_history(5, 3));
+  const std::string cmd = std::string("/usr/bin/python3 ") + SOFTSHOCK_SOURCE_DIR +
+                          "/tests/integration/check_xdmf_structure.py " + dir.str("result.xdmf");
+  const int rc = std::system(cmd.c_str());
+  ASSERT_NE(rc, -1);
+  EXPECT_TRUE(WIFEXITED(rc) && WEXITSTATUS(rc) == 0) << cmd << " -> " << rc;
 }
 
 #endif  // SOFTSHOCK_RESULT_FILE_INTEGRATION

@@ -34,9 +34,12 @@ try:
     from softshock_health import health_pb2, health_pb2_grpc
 except ImportError as exc:  # pragma: no cover - depends on the environment
     raise ImportError(
-        "softshock_client needs the stubs generated from proto/: run "
+        "softshock_client needs the stubs generated from proto/: install the package "
+        "(pip install --no-build-isolation client/python generates them) or run "
         "`cmake --build build --target softshock_python` and put build/python on PYTHONPATH "
         "(PYTHONPATH=build/python:client/python)") from exc
+
+from .meshes import local_mesh_file, spec_dir, upload_requests  # noqa: E402 (needs the stubs)
 
 DEFAULT_SERVER = "127.0.0.1:50051"
 TERMINAL_STATES = frozenset(
@@ -72,6 +75,11 @@ class SeriesDict(dict):
         super().__init__(*args, **kwargs)
         self.units = dict(units or {})
 
+    def to_xarray(self, job_id: str = ""):
+        """An xarray Dataset over time, units as attributes (needs python3-xarray)."""
+        from .xarray_views import series_dataset
+        return series_dataset(self, job_id)
+
 
 @dataclass
 class GridReduction:
@@ -91,6 +99,11 @@ class GridReduction:
 
     def __array__(self, dtype=None):
         return self.values if dtype is None else self.values.astype(dtype)
+
+    def to_xarray(self):
+        """An xarray DataArray over the grid's axes (needs python3-xarray)."""
+        from .xarray_views import reduction_dataarray
+        return reduction_dataarray(self)
 
 
 # QueryJobs filters from text: "pbar>=0.5", "gamma>6", "pbar=0.5..1.5".
@@ -224,6 +237,7 @@ class Client:
         else:
             self._channel = grpc.insecure_channel(self.server, options=options)
         self._stub = service_pb2_grpc.SimulationServiceStub(self._channel)
+        self._meshes = service_pb2_grpc.MeshServiceStub(self._channel)
         self._health = health_pb2_grpc.HealthStub(self._channel)
 
     # -- plumbing ------------------------------------------------------------------------------
@@ -258,7 +272,8 @@ class Client:
         """Submits a run; returns the Job (the final one when wait=True). With reuse_result, an
         identical SUCCEEDED run's result is reused (Job.reused_from) instead of running."""
         request = service_pb2.SubmitJobRequest(
-            spec=load_spec(spec), labels=dict(labels or {}), priority=priority,
+            spec=self._with_uploaded_mesh(load_spec(spec), spec_dir(spec)),
+            labels=dict(labels or {}), priority=priority,
             request_id=request_id or str(uuid.uuid4()), reuse_result=reuse_result)
         job = self._call(self._stub.SubmitJob, request)
         if wait:
@@ -367,6 +382,11 @@ class Client:
         return t, np.arange(m.mode_min, m.mode_min + m.mode_count), amp.reshape(t.size,
                                                                                  m.mode_count)
 
+    def modes_xarray(self, job_id: str, **kw):
+        """modes() as an xarray DataArray over (time, mode) (needs python3-xarray)."""
+        from .xarray_views import modes_dataarray
+        return modes_dataarray(*self.modes(job_id, **kw), job_id=job_id)
+
     def field(self, job_id: str, name: str, time: Optional[float] = None,
               frame: Optional[int] = None, raster: Optional[Tuple[int, int]] = None,
               every: Optional[int] = None) -> FieldData:
@@ -430,15 +450,51 @@ class Client:
         if grid_file is not None:
             with open(grid_file, encoding="utf-8") as f:
                 request = json_format.Parse(f.read(), service_pb2.SubmitGridRequest())
+            base_dir = spec_dir(grid_file)
         else:
             request = service_pb2.SubmitGridRequest(base_spec=load_spec(base_spec or {}))
             request.axes.extend(_grid_axis(a) for a in axes)
+            base_dir = spec_dir(base_spec)
+        self._with_uploaded_mesh(request.base_spec, base_dir)
         request.labels.update(labels or {})
         request.priority = priority or request.priority
         request.recompute = recompute or request.recompute
         request.request_id = request_id or request.request_id or str(uuid.uuid4())
         grid = self._call(self._stub.SubmitGrid, request)
         return self.wait_grid(grid.id) if wait else grid
+
+    # -- meshes --------------------------------------------------------------------------------
+    def upload_mesh(self, path: str):
+        """Uploads a Gmsh .msh file; returns the Mesh (id = SHA-256 of the bytes; uploading
+        the same bytes again returns the same mesh). Use it as {"geometry": {"meshId": id}}."""
+        return self._call(lambda _, **kw: self._meshes.UploadMesh(upload_requests(path), **kw),
+                          None)
+
+    def list_meshes(self) -> List:
+        out, token = [], ""
+        while True:
+            page = self._call(self._meshes.ListMeshes,
+                              service_pb2.ListMeshesRequest(page_size=1000, page_token=token))
+            out.extend(page.meshes)
+            token = page.next_page_token
+            if not token:
+                return out
+
+    def delete_mesh(self, mesh_id: str) -> None:
+        """Refused (FAILED_PRECONDITION) while a queued or running job uses the mesh."""
+        self._call(self._meshes.DeleteMesh, service_pb2.DeleteMeshRequest(name=mesh_id))
+
+    def _with_uploaded_mesh(self, spec, base_dir):
+        """Uploads a local geometry.mesh_file (see softshock_client.meshes) and names it by id."""
+        try:
+            path = local_mesh_file(spec, base_dir)
+        except FileNotFoundError as exc:
+            raise SpecError(str(exc)) from None
+        if path is not None:
+            mesh_id = self.upload_mesh(path).id
+            spec.geometry.ClearField("shape")
+            spec.geometry.mesh_id = mesh_id
+        return spec
 
     def grid(self, grid_id: str):
         return self._call(self._stub.GetGrid, service_pb2.GetGridRequest(id=grid_id))
