@@ -12,6 +12,7 @@
 #include <optional>
 
 #include "server/log.hpp"
+#include "solver/io/async_result_writer.hpp"
 #include "solver/io/result_file.hpp"
 #include "solver/run_summary.hpp"
 #include "solver/simulation.hpp"
@@ -181,7 +182,19 @@ StoredSummary make_stored_summary(const RunSummary& summary, const History& hist
 }
 
 JobRunner::JobRunner(RunnerConfig config, Catalogue& catalogue, JobEvents& events)
-    : config_(std::move(config)), catalogue_(catalogue), events_(events) {}
+    : config_(std::move(config)), catalogue_(catalogue), events_(events) {
+  if (config_.mesh_cache_bytes > 0) {
+    try {
+      mesh_cache_ = std::make_unique<MeshCache>(mesh_cache_dir(), config_.mesh_cache_bytes);
+    } catch (const std::exception& e) {
+      log_warning("no mesh cache (every job meshes): ", e.what());
+    }
+  }
+}
+
+std::string JobRunner::mesh_cache_dir() const {
+  return (fs::path(config_.data_dir) / "cache" / "meshes").string();
+}
 
 std::string JobRunner::job_dir(const std::string& id) const {
   return (fs::path(config_.data_dir) / "jobs" / id).string();
@@ -264,6 +277,7 @@ void JobRunner::run(const std::string& id, CancelToken& cancel) {
   v1::RunSpec spec;
   Problem problem;
   SolverOptions options;
+  MeshingReport meshing;
   try {
     spec = normalize_spec(parse_stored_spec(job->spec_json), config_.limits);
     v1::RunSpec meshing_spec = spec;
@@ -272,7 +286,8 @@ void JobRunner::run(const std::string& id, CancelToken& cancel) {
       meshing_spec.mutable_geometry()->set_mesh_file(
           (fs::path(meshes_dir()) / spec.geometry().mesh_file()).string());
     }
-    problem = make_problem(meshing_spec, config_.limits);
+    problem = make_problem(meshing_spec, config_.limits, mesh_cache_.get(), &meshing);
+    if (!meshing.warning.empty()) log_warning("job ", id, ": mesh not cached: ", meshing.warning);
     options = make_options(spec);
     options.threads = std::max(1, config_.solver_threads);
   } catch (const SpecError& e) {
@@ -301,7 +316,7 @@ void JobRunner::run(const std::string& id, CancelToken& cancel) {
   }
 
   const std::string dir = job_dir(id);
-  std::unique_ptr<ResultWriter> writer;
+  std::unique_ptr<AsyncResultWriter> writer;
   try {
     std::error_code ec;
     fs::create_directories(dir, ec);
@@ -309,8 +324,8 @@ void JobRunner::run(const std::string& id, CancelToken& cancel) {
     // A previous attempt's files (interrupted, or a partial result) are superseded.
     for (const char* name : {"result.h5", "result.xdmf"}) fs::remove(fs::path(dir) / name, ec);
     remove_stale_files(id);
-    writer =
-        std::make_unique<ResultWriter>(dir, problem.mesh, spec_to_json(spec), SOFTSHOCK_VERSION);
+    writer = std::make_unique<AsyncResultWriter>(dir, problem.mesh, spec_to_json(spec),
+                                                 SOFTSHOCK_VERSION);
   } catch (const std::exception& e) {
     finish(JobState::kFailed, reason::kInternal, std::string("result file: ") + e.what(), "",
            nullptr);

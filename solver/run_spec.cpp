@@ -2,6 +2,7 @@
 
 #include <google/protobuf/util/json_util.h>
 
+#include <chrono>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -196,30 +197,60 @@ std::string spec_to_json(const v1::RunSpec& spec) {
   return out;
 }
 
-Problem make_problem(const v1::RunSpec& s, const SpecLimits& limits) {
-  Problem p;
-  const auto& g = s.geometry();
+namespace {
+
+Mesh mesh_geometry(const v1::Geometry& g) {
   switch (g.shape_case()) {
     case v1::Geometry::kDisk:
-      p.mesh = mesh_disk(g.disk().radius(), g.target_elements());
+      return mesh_disk(g.disk().radius(), g.target_elements());
+    case v1::Geometry::kRoundedSquare:
+      return mesh_rounded_square(g.rounded_square().side(), g.rounded_square().corner_radius(),
+                                 g.target_elements());
+    case v1::Geometry::kMeshFile:
+      try {
+        return read_gmsh_file(g.mesh_file());
+      } catch (const std::exception& e) {
+        throw SpecError("geometry.mesh_file", e.what());
+      }
+    case v1::Geometry::SHAPE_NOT_SET:
+      break;
+  }
+  throw SpecError("geometry", "one of disk, rounded_square or mesh_file is required");
+}
+
+}  // namespace
+
+Problem make_problem(const v1::RunSpec& s, const SpecLimits& limits, const MeshCache* cache,
+                     MeshingReport* report) {
+  const auto started = std::chrono::steady_clock::now();
+  Problem p;
+  const auto& g = s.geometry();
+  const auto material = cache ? mesh_key_material(g) : std::nullopt;
+  MeshCacheOutcome outcome = MeshCacheOutcome::kNotUsed;
+  std::string warning;
+  if (material) {
+    p.mesh = cache->get_or_build(
+        mesh_cache_key(*material), *material, [&] { return mesh_geometry(g); }, &outcome, &warning);
+  } else {
+    p.mesh = mesh_geometry(g);
+  }
+  switch (g.shape_case()) {
+    case v1::Geometry::kDisk:
       p.origin = {0.0, 0.0};
       p.reference_radius_m = g.disk().radius();
       break;
     case v1::Geometry::kRoundedSquare:
-      p.mesh = mesh_rounded_square(g.rounded_square().side(), g.rounded_square().corner_radius(),
-                                   g.target_elements());
       p.origin = {0.0, 0.0};
       p.reference_radius_m = 0.5 * g.rounded_square().side();
       break;
-    case v1::Geometry::kMeshFile:
-      try {
-        p.mesh = read_gmsh_file(g.mesh_file());
-      } catch (const std::exception& e) {
-        throw SpecError("geometry.mesh_file", e.what());
-      }
+    default:
       break;
-    case v1::Geometry::SHAPE_NOT_SET:
-      throw SpecError("geometry", "one of disk, rounded_square or mesh_file is required");
+  }
+  if (report) {
+    report->seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
+    report->cache = outcome;
+    report->warning = warning;
   }
   require(static_cast<int64_t>(p.mesh.element_count()) <= limits.max_elements,
           "geometry.target_elements",

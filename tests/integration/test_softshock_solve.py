@@ -13,12 +13,14 @@ import h5py
 SOLVE = os.environ["SOFTSHOCK_SOLVE"]
 
 
-def solve(spec, out):
+def solve(spec, out, extra=()):
     with tempfile.NamedTemporaryFile("w", suffix=".json", delete=False) as f:
         json.dump(spec, f)
     try:
-        return subprocess.run([SOLVE, "--spec", f.name, "--out", out], capture_output=True,
-                              text=True, timeout=300)
+        # No mesh cache unless a test asks for one: tests stay out of the user's ~/.cache.
+        return subprocess.run([SOLVE, "--spec", f.name, "--out", out,
+                               *(extra or ["--no-mesh-cache"])],
+                              capture_output=True, text=True, timeout=300)
     finally:
         os.unlink(f.name)
 
