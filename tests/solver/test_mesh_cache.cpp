@@ -231,6 +231,7 @@ TEST(MeshCache, ReadersNeverSeeAPartialEntry) {
   ScratchDir dir;
   const MeshCache cache(dir.str(), 64 << 20);
   const Mesh mesh = make_rectangle_mesh(1.0, 1.0, 60, 60);
+  cache.store("k", "m", mesh);  // readers then always find an entry, never a missing file
   std::atomic<bool> stop{false};
   std::atomic<int> unusable_seen{0}, hits{0};
   std::vector<std::thread> threads;
@@ -245,6 +246,7 @@ TEST(MeshCache, ReadersNeverSeeAPartialEntry) {
         bool unusable = false;
         const auto m = cache.load("k", "m", &unusable);
         if (unusable) ++unusable_seen;
+        EXPECT_TRUE(m.has_value());  // replaced by rename: never absent, never partial
         if (m) {
           ++hits;
           EXPECT_TRUE(same_bytes(m->x, mesh.x));
