@@ -98,6 +98,10 @@ RunSummary parse_summary_json(const std::string& json) {
   }
   r.min_dt_s = json_number(s, "min_dt_s");
   r.max_dt_s = json_number(s, "max_dt_s");
+  // Absent in results written before they were added: 0, not NaN.
+  if (f.find("kernel_time_s") != f.end()) r.kernel_time_s = json_number(s, "kernel_time_s");
+  if (f.find("meshing_time_s") != f.end()) r.meshing_time_s = json_number(s, "meshing_time_s");
+  if (f.find("mesh_cache") != f.end()) r.mesh_cache = text("mesh_cache");
   return r;
 }
 
@@ -411,7 +415,9 @@ void JobRunner::run(const std::string& id, CancelToken& cancel) {
 
   std::optional<StoredSummary> stored;
   try {
-    const RunSummary summary = summarize(problem, result);
+    RunSummary summary = summarize(problem, result);
+    summary.meshing_time_s = meshing.seconds;
+    summary.mesh_cache = to_string(meshing.cache);
     stored = make_stored_summary(summary, result.history);
     if (state != JobState::kFailed || why != reason::kInternal) {
       writer->finish(result.history, summary, state == JobState::kSucceeded, error);

@@ -163,7 +163,9 @@ int main(int argc, char** argv) {
     control.on_frame = [&](const softshock::FieldFrame& f) { writer.write_frame(f); };
     const auto result = softshock::run_simulation(problem, softshock::make_options(spec), control);
     reporter.done();
-    const auto summary = softshock::summarize(problem, result);
+    auto summary = softshock::summarize(problem, result);
+    summary.meshing_time_s = meshing.seconds;
+    summary.mesh_cache = softshock::to_string(meshing.cache);
     const bool complete = result.status == softshock::RunStatus::kCompleted;
     writer.finish(result.history, summary, complete, result.error);
     std::cout << softshock::summary_to_json(summary) << std::endl;
