@@ -316,7 +316,7 @@ int cmd_summary(const GlobalOptions& g, const ParsedArgs& a) {
     if (s.kernel_time() > 0) {
       kv.add("kernel grind time",
              fmt_num(s.kernel_time() / (double(s.steps()) * double(s.elements())) * 1e9, 4) +
-                 " ns per element-step (element loop alone)");
+                 " ns per element-step (element loop alone, CPU time)");
     }
   }
   if (!s.mesh_cache().empty()) {
