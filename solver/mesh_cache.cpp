@@ -14,6 +14,7 @@
 #include <chrono>
 #include <cstring>
 #include <filesystem>
+#include <random>
 #include <stdexcept>
 #include <thread>
 #include <vector>
@@ -233,10 +234,15 @@ std::optional<Mesh> MeshCache::load(const std::string& key, const std::string& m
 void MeshCache::store(const std::string& key, const std::string& material, const Mesh& mesh) const {
   const std::string bytes = serialize(material, mesh);
   if (bytes.size() > max_bytes_) return;  // would evict everything, itself included
+  // Unique among the writers of a shared folder: pids repeat across the nodes of a cluster.
+  static const std::string writer_id = [] {
+    std::random_device random;
+    return std::to_string(::getpid()) + "." + hex64((std::uint64_t{random()} << 32) | random());
+  }();
   static std::atomic<unsigned> counter{0};
   const std::string final_path = entry_path(key);
-  const std::string tmp = final_path + kTmpMarker + std::to_string(::getpid()) + "." +
-                          std::to_string(counter.fetch_add(1));
+  const std::string tmp =
+      final_path + kTmpMarker + writer_id + "." + std::to_string(counter.fetch_add(1));
   const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0644);
   if (fd < 0) throw std::runtime_error("mesh cache: cannot create " + tmp + ": " + strerror(errno));
   std::size_t done = 0;
