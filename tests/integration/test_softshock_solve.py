@@ -13,14 +13,15 @@ import h5py
 SOLVE = os.environ["SOFTSHOCK_SOLVE"]
 
 
-def solve(spec, out, extra=()):
+def solve(spec, out, extra=(), env=None):
     with tempfile.NamedTemporaryFile("w", suffix=".json", delete=False) as f:
         json.dump(spec, f)
     try:
         # No mesh cache unless a test asks for one: tests stay out of the user's ~/.cache.
         return subprocess.run([SOLVE, "--spec", f.name, "--out", out,
                                *(extra or ["--no-mesh-cache"])],
-                              capture_output=True, text=True, timeout=300)
+                              capture_output=True, text=True, timeout=300,
+                              env=None if env is None else {**os.environ, **env})
     finally:
         os.unlink(f.name)
 
@@ -58,8 +59,14 @@ class SoftshockSolve(unittest.TestCase):
         cache = os.path.join(self.tmp.name, "meshes")
         first = solve(spec, self.out, ["--mesh-cache", cache])
         self.assertEqual(first.returncode, 0, first.stderr)
-        second = solve(spec, self.out + "2", ["--mesh-cache", cache])
+        # A hit never loads the Gmsh module: pointed at nothing, the run still succeeds...
+        no_gmsh = {"SOFTSHOCK_GMSH_MESHER": os.path.join(self.tmp.name, "no-such-module.so")}
+        second = solve(spec, self.out + "2", ["--mesh-cache", cache], env=no_gmsh)
         self.assertEqual(second.returncode, 0, second.stderr)
+        # ... while a run that must mesh says why it cannot.
+        third = solve(spec, self.out + "3", ["--no-mesh-cache"], env=no_gmsh)
+        self.assertEqual(third.returncode, 1)
+        self.assertIn("SOFTSHOCK_GMSH_MESHER", third.stderr)
         a, b = json.loads(first.stdout), json.loads(second.stdout)
         self.assertEqual((a["mesh_cache"], b["mesh_cache"]), ("miss", "hit"))
         self.assertEqual(len([n for n in os.listdir(cache) if n.endswith(".mesh")]), 1)
