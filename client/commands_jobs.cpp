@@ -308,10 +308,22 @@ int cmd_summary(const GlobalOptions& g, const ParsedArgs& a) {
   kv.add("wall time", fmt_num(s.wall_time(), 4) + " s");
   kv.add("simulated time", fmt_ns(s.end_time()));
   if (s.steps() > 0 && s.elements() > 0 && s.wall_time() > 0) {
-    // Grind time, the figure explicit codes are compared by (LS-DYNA's "time per zone cycle").
+    // Grind time, the figure explicit codes are compared by (LS-DYNA's "time per zone cycle"):
+    // the whole run's and the element loop's alone, and the meshing share beside them, so the
+    // user sees where the time went.
     kv.add("grind time",
            fmt_num(s.wall_time() / (double(s.steps()) * double(s.elements())) * 1e9, 4) +
                " ns per element-step");
+    if (s.kernel_time() > 0) {
+      kv.add("kernel grind time",
+             fmt_num(s.kernel_time() / (double(s.steps()) * double(s.elements())) * 1e9, 4) +
+                 " ns per element-step (element loop alone, CPU time)");
+    }
+  }
+  if (!s.mesh_cache().empty()) {
+    kv.add("meshing", fmt_num(s.meshing_time(), 3) + " s (" +
+                          fmt_num(100 * s.meshing_time() / (s.meshing_time() + s.wall_time()), 3) +
+                          " % of meshing + run; mesh cache: " + s.mesh_cache() + ")");
   }
   kv.add("time scale R0/c0", fmt_ns(n.time_scale()));
   kv.add("P-bar", fmt_num(n.pbar()));

@@ -177,6 +177,13 @@ CREATE TABLE grids (
 ALTER TABLE jobs ADD COLUMN slurm_job_id TEXT NOT NULL DEFAULT '';
 CREATE INDEX jobs_slurm_job_id ON jobs(slurm_job_id) WHERE slurm_job_id != '';
 )sql",
+    // 3 -> 4: where a run's time went (RunSummary): the element loop alone, the meshing before
+    // the run and whether the mesh came from the cache. Older rows: 0 and 'not-used'.
+    R"sql(
+ALTER TABLE job_summaries ADD COLUMN kernel_time REAL NOT NULL DEFAULT 0;
+ALTER TABLE job_summaries ADD COLUMN meshing_time REAL NOT NULL DEFAULT 0;
+ALTER TABLE job_summaries ADD COLUMN mesh_cache TEXT NOT NULL DEFAULT 'not-used';
+)sql",
 };
 
 std::string blob_of(const std::vector<double>& v) {
@@ -391,7 +398,10 @@ std::string summary_columns(const std::string& t = "") {
                         "min_dt",
                         "max_dt",
                         "status",
-                        "error"}) {
+                        "error",
+                        "kernel_time",
+                        "meshing_time",
+                        "mesh_cache"}) {
     out += (out.empty() ? "" : ", ") + t + c;
   }
   return out;
@@ -450,9 +460,12 @@ RunSummary read_summary(const Connection::Stmt& s, int c) {
   r.max_dt_s = s.dbl(c + 20);
   r.status = s.text(c + 21);
   r.error = s.text(c + 22);
+  r.kernel_time_s = s.dbl(c + 23);
+  r.meshing_time_s = s.dbl(c + 24);
+  r.mesh_cache = s.text(c + 25);
   return r;
 }
-constexpr int kSummaryColumnCount = 23;
+constexpr int kSummaryColumnCount = 26;
 
 // A nullable REAL column: NaN for NULL.
 double nullable_double(const Connection::Stmt& s, int col) {
@@ -514,7 +527,8 @@ void copy_summary(Connection& c, const std::string& id, const std::string& sourc
       "end_time, pbar, tbar_pulse, mubar, gamma, c1, c2, time_scale, energy_injected, "
       "energy_after_pulse, max_abar_first_cycle, max_abar, dominant_mode_end, shock_at_center, "
       "rim_reflections, min_dt, max_dt, status, error, mode_count, mode_times, mode_amplitudes, "
-      "abar_times, abar_values FROM job_summaries WHERE job_id = ?");
+      "abar_times, abar_values, kernel_time, meshing_time, mesh_cache FROM job_summaries "
+      "WHERE job_id = ?");
   s.bind(1, id).bind(2, source);
   s.run();
 }
@@ -804,8 +818,9 @@ bool Catalogue::finish(const std::string& id, int attempt, JobState terminal,
         "end_time, pbar, tbar_pulse, mubar, gamma, c1, c2, time_scale, energy_injected, "
         "energy_after_pulse, max_abar_first_cycle, max_abar, dominant_mode_end, shock_at_center, "
         "rim_reflections, min_dt, max_dt, status, error, mode_count, mode_times, "
-        "mode_amplitudes, abar_times, abar_values) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, "
-        "?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)");
+        "mode_amplitudes, abar_times, abar_values, kernel_time, meshing_time, mesh_cache) "
+        "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, "
+        "?, ?, ?, ?, ?)");
     // Positional binds in column order (one statement each: clear sequencing).
     int i = 0;
     auto put = [&](auto v) { s.bind(++i, v); };
@@ -839,6 +854,9 @@ bool Catalogue::finish(const std::string& id, int attempt, JobState terminal,
     put_blob(summary->mode_amplitudes);
     put_blob(summary->abar_times);
     put_blob(summary->abar_values);
+    put(r.kernel_time_s);
+    put(r.meshing_time_s);
+    put(r.mesh_cache);
     s.run();
     // The solver's groups are exact (a mesh_file job's R0 is known only once meshed).
     refresh_query_columns(c, id);

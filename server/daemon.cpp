@@ -139,6 +139,7 @@ Daemon::Daemon(DaemonConfig config) : impl_(std::make_unique<Impl>()) {
   rc.limits.max_end_time_s = config.max_end_time_s;
   rc.solver_threads = config.solver_threads;
   rc.max_wall_time_s = config.max_wall_time_s;
+  rc.mesh_cache_bytes = static_cast<std::uint64_t>(config.mesh_cache_bytes);
   d.runner = std::make_unique<JobRunner>(rc, *d.catalogue, d.events);
   d.recover();
 

@@ -24,6 +24,7 @@ struct DaemonConfig {
   double max_end_time_s = 1e-5;
   double max_wall_time_s = 0;  // 0 = none
   int solver_threads = 1;
+  long long mesh_cache_bytes = 1LL << 30;  // DATA/cache/meshes, LRU by bytes; 0 = no cache
   int max_attempts = 3;
   int max_streams = 64;
   int max_receive_bytes = 4 << 20;

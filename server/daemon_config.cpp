@@ -125,6 +125,13 @@ const std::vector<Setting>& settings() {
          c.solver_threads = static_cast<int>(parse_int(v, 1, 1024));
        },
        [](const DaemonConfig& c) { return std::to_string(c.solver_threads); }},
+      {"mesh-cache-bytes", "BYTES",
+       "meshes kept in DATA/cache/meshes for reuse, least recently used evicted first; 0 = "
+       "mesh every job (default 1073741824 = 1 GiB)",
+       [](DaemonConfig& c, const std::string& v) {
+         c.mesh_cache_bytes = parse_int(v, 0, 1LL << 50);
+       },
+       [](const DaemonConfig& c) { return std::to_string(c.mesh_cache_bytes); }},
       {"max-attempts", "N", "runs a job gets when the daemon is killed under it (default 3)",
        [](DaemonConfig& c, const std::string& v) {
          c.max_attempts = static_cast<int>(parse_int(v, 1, 1000));

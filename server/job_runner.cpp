@@ -12,6 +12,7 @@
 #include <optional>
 
 #include "server/log.hpp"
+#include "solver/io/async_result_writer.hpp"
 #include "solver/io/result_file.hpp"
 #include "solver/run_summary.hpp"
 #include "solver/simulation.hpp"
@@ -97,6 +98,10 @@ RunSummary parse_summary_json(const std::string& json) {
   }
   r.min_dt_s = json_number(s, "min_dt_s");
   r.max_dt_s = json_number(s, "max_dt_s");
+  // Absent in results written before they were added: 0, not NaN.
+  if (f.find("kernel_time_s") != f.end()) r.kernel_time_s = json_number(s, "kernel_time_s");
+  if (f.find("meshing_time_s") != f.end()) r.meshing_time_s = json_number(s, "meshing_time_s");
+  if (f.find("mesh_cache") != f.end()) r.mesh_cache = text("mesh_cache");
   return r;
 }
 
@@ -181,7 +186,19 @@ StoredSummary make_stored_summary(const RunSummary& summary, const History& hist
 }
 
 JobRunner::JobRunner(RunnerConfig config, Catalogue& catalogue, JobEvents& events)
-    : config_(std::move(config)), catalogue_(catalogue), events_(events) {}
+    : config_(std::move(config)), catalogue_(catalogue), events_(events) {
+  if (config_.mesh_cache_bytes > 0) {
+    try {
+      mesh_cache_ = std::make_unique<MeshCache>(mesh_cache_dir(), config_.mesh_cache_bytes);
+    } catch (const std::exception& e) {
+      log_warning("no mesh cache (every job meshes): ", e.what());
+    }
+  }
+}
+
+std::string JobRunner::mesh_cache_dir() const {
+  return (fs::path(config_.data_dir) / "cache" / "meshes").string();
+}
 
 std::string JobRunner::job_dir(const std::string& id) const {
   return (fs::path(config_.data_dir) / "jobs" / id).string();
@@ -264,6 +281,7 @@ void JobRunner::run(const std::string& id, CancelToken& cancel) {
   v1::RunSpec spec;
   Problem problem;
   SolverOptions options;
+  MeshingReport meshing;
   try {
     // mesh_file is validated and read under DATA/meshes/, never the working directory; the
     // run's own record (spec) keeps the relative name.
@@ -278,7 +296,8 @@ void JobRunner::run(const std::string& id, CancelToken& cancel) {
     const std::string relative = spec.geometry().mesh_file();
     spec = meshing_spec;
     if (!relative.empty()) spec.mutable_geometry()->set_mesh_file(relative);
-    problem = make_problem(meshing_spec, config_.limits);
+    problem = make_problem(meshing_spec, config_.limits, mesh_cache_.get(), &meshing);
+    if (!meshing.warning.empty()) log_warning("job ", id, ": mesh not cached: ", meshing.warning);
     options = make_options(spec);
     options.threads = std::max(1, config_.solver_threads);
   } catch (const SpecError& e) {
@@ -307,7 +326,7 @@ void JobRunner::run(const std::string& id, CancelToken& cancel) {
   }
 
   const std::string dir = job_dir(id);
-  std::unique_ptr<ResultWriter> writer;
+  std::unique_ptr<AsyncResultWriter> writer;
   try {
     std::error_code ec;
     fs::create_directories(dir, ec);
@@ -315,8 +334,8 @@ void JobRunner::run(const std::string& id, CancelToken& cancel) {
     // A previous attempt's files (interrupted, or a partial result) are superseded.
     for (const char* name : {"result.h5", "result.xdmf"}) fs::remove(fs::path(dir) / name, ec);
     remove_stale_files(id);
-    writer =
-        std::make_unique<ResultWriter>(dir, problem.mesh, spec_to_json(spec), SOFTSHOCK_VERSION);
+    writer = std::make_unique<AsyncResultWriter>(dir, problem.mesh, spec_to_json(spec),
+                                                 SOFTSHOCK_VERSION);
   } catch (const std::exception& e) {
     finish(JobState::kFailed, reason::kInternal, std::string("result file: ") + e.what(), "",
            nullptr);
@@ -402,7 +421,9 @@ void JobRunner::run(const std::string& id, CancelToken& cancel) {
 
   std::optional<StoredSummary> stored;
   try {
-    const RunSummary summary = summarize(problem, result);
+    RunSummary summary = summarize(problem, result);
+    summary.meshing_time_s = meshing.seconds;
+    summary.mesh_cache = to_string(meshing.cache);
     stored = make_stored_summary(summary, result.history);
     if (state != JobState::kFailed || why != reason::kInternal) {
       writer->finish(result.history, summary, state == JobState::kSucceeded, error);

@@ -1,8 +1,11 @@
-// Runs one catalogued job: spec -> Problem -> ResultWriter (DATA/jobs/<id>/) -> run_simulation
-// with throttled progress and field frames -> summary -> terminal transition. A job becomes
-// SUCCEEDED only after ResultWriter::finish() returned, i.e. once result.h5 is durable.
+// Runs one catalogued job: spec -> Problem (mesh from DATA/cache/meshes when cached) ->
+// AsyncResultWriter (DATA/jobs/<id>/) -> run_simulation with throttled progress and field frames
+// -> summary -> terminal transition. A job becomes SUCCEEDED only after the writer's finish()
+// returned, i.e. once result.h5 is durable.
 #pragma once
 
+#include <cstdint>
+#include <memory>
 #include <string>
 
 #include "server/catalogue.hpp"
@@ -19,6 +22,7 @@ struct RunnerConfig {
   int solver_threads = 1;            // element-loop threads per job (overrides run.threads)
   double max_wall_time_s = 0;        // 0 = no limit
   double progress_interval_s = 0.1;  // how often live progress is published
+  std::uint64_t mesh_cache_bytes = std::uint64_t{1} << 30;  // DATA/cache/meshes; 0 = no cache
 };
 
 class JobRunner {
@@ -30,6 +34,7 @@ class JobRunner {
 
   std::string job_dir(const std::string& id) const;
   std::string meshes_dir() const;
+  std::string mesh_cache_dir() const;  // DATA/cache/meshes
   // Removes leftovers of an interrupted attempt (result.h5.tmp and friends) in a job folder.
   void remove_stale_files(const std::string& id) const;
   // Gives job `id` the finished result files at source_result_path (hard links); returns its
@@ -43,6 +48,7 @@ class JobRunner {
   RunnerConfig config_;
   Catalogue& catalogue_;
   JobEvents& events_;
+  std::unique_ptr<MeshCache> mesh_cache_;  // null: disabled or unusable
 };
 
 // The daemon's rule for geometry.mesh_file: a relative path without "..", resolved under

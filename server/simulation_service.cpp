@@ -313,6 +313,12 @@ void fill_summary(const std::string& id, const RunSummary& s, v1::JobSummary* re
   for (double t : s.rim_reflections_s) resp->add_rim_reflections(t);
   resp->set_min_dt(s.min_dt_s);
   resp->set_max_dt(s.max_dt_s);
+  resp->set_kernel_time(s.kernel_time_s);
+  resp->set_grind_time(s.grind_ns());
+  resp->set_kernel_grind_time(s.kernel_grind_ns());
+  resp->set_meshing_time(s.meshing_time_s);
+  resp->set_meshing_share(s.meshing_share());
+  resp->set_mesh_cache(s.mesh_cache);
 }
 
 // request_id and labels of SubmitJob and SubmitGrid.

@@ -500,7 +500,10 @@ void SlurmExecutor::submit_batch(const std::vector<JobRecord>& jobs) {
          << "id=${ids[${SLURM_ARRAY_TASK_ID:-0}]}\n"
          << "dir=" << sh_quote(fs::path(config_.shared_dir) / "jobs") << "/$id\n"
          << "exec " << sh_quote(config_.solver) << " --spec \"$dir/spec.json\" --out \"$dir\""
-         << " --threads " << config_.solver_threads
+         << " --threads "
+         << config_.solver_threads
+         // One mesh cache for every node: a grid meshes its geometry once cluster-wide.
+         << " --mesh-cache " << sh_quote(fs::path(config_.shared_dir) / "cache" / "meshes")
          << " >\"$dir/summary.json\" 2>\"$dir/solve.log\"\n";
   const fs::path script_path = batches / (name + ".sh");
   write_text(script_path, script.str());

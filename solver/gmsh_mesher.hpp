@@ -1,5 +1,7 @@
 // Meshes built or read with Gmsh's C++ API. Gmsh keeps global state, so every function here
 // serialises on one process-wide mutex; meshing is single-threaded and deterministic.
+// gmsh_mesher.cpp is compiled into a module loaded on first use (gmsh_plugin.hpp); the solver
+// library's gmsh_loader.cpp provides these functions by forwarding to it.
 #pragma once
 
 #include <string>
@@ -18,5 +20,10 @@ Mesh mesh_rounded_square(double side_m, double corner_radius_m, int target_eleme
 // Reads the 2D triangles (3-node, Gmsh type 2) of a .msh file; z is ignored, coordinates are
 // taken in metres. Throws std::runtime_error naming the file on any failure.
 Mesh read_gmsh_file(const std::string& path);
+
+// Whether this process has loaded the mesher module (and with it libgmsh).
+bool gmsh_mesher_loaded();
+// The Gmsh release the module is built against (e.g. "4.8.4"), known without loading it.
+std::string gmsh_version();
 
 }  // namespace softshock

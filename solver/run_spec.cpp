@@ -2,6 +2,7 @@
 
 #include <google/protobuf/util/json_util.h>
 
+#include <chrono>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -72,8 +73,6 @@ void set_parameters(const v1::RunSpec& s, Problem& p) {
 // R0 = height, so "rim" figures describe the whole outline; read the top surface from frames.
 void set_up_corrugated_strip(const v1::Geometry& g, Problem& p) {
   const auto& c = g.corrugated_strip();
-  p.mesh =
-      make_corrugated_strip_mesh(c.wavelength(), c.height(), c.amplitude(), g.target_elements());
   const double width = 0.5 * c.wavelength(), tol = 1e-9 * width;
   const std::size_t nn = p.mesh.node_count();
   p.fixed_x.assign(nn, 0);
@@ -303,42 +302,80 @@ std::string spec_to_json(const v1::RunSpec& spec) {
   return out;
 }
 
-Problem make_problem(const v1::RunSpec& s, const SpecLimits& limits) {
+namespace {
+
+Mesh mesh_geometry(const v1::Geometry& g) {
+  switch (g.shape_case()) {
+    case v1::Geometry::kDisk: {
+      Mesh mesh = g.mesher() == v1::CONCENTRIC_RINGS
+                      ? mesh_disk_rings(g.disk().radius(), g.target_elements())
+                      : mesh_disk(g.disk().radius(), g.target_elements());
+      if (g.mesh_rotation() != 0.0) rotate_mesh(mesh, g.mesh_rotation());
+      return mesh;
+    }
+    case v1::Geometry::kCorrugatedStrip: {
+      const auto& c = g.corrugated_strip();
+      return make_corrugated_strip_mesh(c.wavelength(), c.height(), c.amplitude(),
+                                        g.target_elements());
+    }
+    case v1::Geometry::kRoundedSquare:
+      return mesh_rounded_square(g.rounded_square().side(), g.rounded_square().corner_radius(),
+                                 g.target_elements());
+    case v1::Geometry::kMeshFile:
+      try {
+        return read_gmsh_file(g.mesh_file());
+      } catch (const std::exception& e) {
+        throw SpecError("geometry.mesh_file", e.what());
+      }
+    case v1::Geometry::SHAPE_NOT_SET:
+      break;
+  }
+  throw SpecError("geometry",
+                  "one of disk, rounded_square, mesh_file or corrugated_strip is required");
+}
+
+}  // namespace
+
+Problem make_problem(const v1::RunSpec& s, const SpecLimits& limits, const MeshCache* cache,
+                     MeshingReport* report) {
+  const auto started = std::chrono::steady_clock::now();
   Problem p;
   const auto& g = s.geometry();
+  const auto material = cache ? mesh_key_material(g) : std::nullopt;
+  MeshCacheOutcome outcome = MeshCacheOutcome::kNotUsed;
+  std::string warning;
+  if (material) {
+    p.mesh = cache->get_or_build(
+        mesh_cache_key(*material), *material, [&] { return mesh_geometry(g); }, &outcome, &warning);
+  } else {
+    p.mesh = mesh_geometry(g);
+  }
   switch (g.shape_case()) {
     case v1::Geometry::kDisk:
-      p.mesh = g.mesher() == v1::CONCENTRIC_RINGS
-                   ? mesh_disk_rings(g.disk().radius(), g.target_elements())
-                   : mesh_disk(g.disk().radius(), g.target_elements());
-      if (g.mesh_rotation() != 0.0) rotate_mesh(p.mesh, g.mesh_rotation());
       p.origin = {0.0, 0.0};
       p.reference_radius_m = g.disk().radius();
       break;
     case v1::Geometry::kRoundedSquare:
-      p.mesh = mesh_rounded_square(g.rounded_square().side(), g.rounded_square().corner_radius(),
-                                   g.target_elements());
       p.origin = {0.0, 0.0};
       p.reference_radius_m = 0.5 * g.rounded_square().side();
-      break;
-    case v1::Geometry::kMeshFile:
-      try {
-        p.mesh = read_gmsh_file(g.mesh_file());
-      } catch (const std::exception& e) {
-        throw SpecError("geometry.mesh_file", e.what());
-      }
       break;
     case v1::Geometry::kCorrugatedStrip:
       set_up_corrugated_strip(g, p);
       break;
-    case v1::Geometry::SHAPE_NOT_SET:
-      throw SpecError("geometry",
-                      "one of disk, rounded_square, mesh_file or corrugated_strip is required");
+    default:
+      break;
   }
+  // The roughness moves nodes of the (possibly cached) smooth mesh, so it is applied here.
   if (g.rim_roughness().amplitude() > 0) {
     const auto& r = g.rim_roughness();
     apply_rim_roughness(p.mesh, p.origin, p.reference_radius_m,
                         {r.amplitude(), r.min_mode(), r.max_mode(), r.seed()});
+  }
+  if (report) {
+    report->seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
+    report->cache = outcome;
+    report->warning = warning;
   }
   require(static_cast<int64_t>(p.mesh.element_count()) <= limits.max_elements,
           "geometry.target_elements",

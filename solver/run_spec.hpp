@@ -5,6 +5,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "mesh_cache.hpp"
 #include "model.hpp"
 #include "run_summary.hpp"
 #include "softshock/v1/spec.pb.h"
@@ -47,10 +48,19 @@ v1::RunSpec normalize_spec(const v1::RunSpec& spec, const SpecLimits& limits = {
 // Compact JSON with every field present (defaults filled); used in result files.
 std::string spec_to_json(const v1::RunSpec& spec);
 
-// Meshes the geometry (Gmsh) and fills the Problem. Expects a normalized spec. Throws
-// SpecError("geometry.mesh_file", ...) if a mesh file cannot be read, and
-// SpecError("geometry.target_elements", ...) if the mesh exceeds limits.max_elements.
-Problem make_problem(const v1::RunSpec& spec, const SpecLimits& limits = {});
+// How the mesh of make_problem came about: wall time (cache look-up included) and the cache's
+// answer; `warning` says why a built mesh could not be stored (the run goes on regardless).
+struct MeshingReport {
+  double seconds = 0;
+  MeshCacheOutcome cache = MeshCacheOutcome::kNotUsed;
+  std::string warning;
+};
+
+// Meshes the geometry (Gmsh; through `cache` when given) and fills the Problem. Expects a
+// normalized spec. Throws SpecError("geometry.mesh_file", ...) if a mesh file cannot be read,
+// and SpecError("geometry.target_elements", ...) if the mesh exceeds limits.max_elements.
+Problem make_problem(const v1::RunSpec& spec, const SpecLimits& limits = {},
+                     const MeshCache* cache = nullptr, MeshingReport* report = nullptr);
 // The nondimensional groups of a normalized spec without meshing: R0 is the disk's radius or
 // half the rounded square's side. A mesh_file's R0 is known only once meshed: its tbar_pulse
 // and time_scale_s are NaN.

@@ -46,8 +46,24 @@ NondimensionalGroups nondimensional_groups(const Problem& p) {
   return nondimensional_groups(p.material, p.viscosity, p.load, polar_frame(p).reference_radius_m);
 }
 
+double RunSummary::grind_ns() const {
+  const double element_steps = static_cast<double>(steps) * static_cast<double>(elements);
+  return element_steps > 0 ? wall_time_s / element_steps * 1e9 : std::nan("");
+}
+
+double RunSummary::kernel_grind_ns() const {
+  const double element_steps = static_cast<double>(steps) * static_cast<double>(elements);
+  return element_steps > 0 ? kernel_time_s / element_steps * 1e9 : std::nan("");
+}
+
+double RunSummary::meshing_share() const {
+  const double total = meshing_time_s + wall_time_s;
+  return total > 0 ? meshing_time_s / total : std::nan("");
+}
+
 RunSummary summarize(const Problem& problem, const RunResult& r) {
   RunSummary s;
+  s.kernel_time_s = r.kernel_time_s;
   const History& h = r.history;
   s.elements = problem.mesh.element_count();
   s.nodes = problem.mesh.node_count();
@@ -149,7 +165,12 @@ std::string summary_to_json(const RunSummary& s) {
     << ",\"shock_at_center_s\":" << number(s.shock_at_center_s) << ",\"rim_reflections_s\":[";
   for (std::size_t k = 0; k < s.rim_reflections_s.size(); ++k)
     o << (k ? "," : "") << number(s.rim_reflections_s[k]);
-  o << "],\"min_dt_s\":" << number(s.min_dt_s) << ",\"max_dt_s\":" << number(s.max_dt_s) << "}";
+  o << "],\"min_dt_s\":" << number(s.min_dt_s) << ",\"max_dt_s\":" << number(s.max_dt_s)
+    << ",\"kernel_time_s\":" << number(s.kernel_time_s) << ",\"grind_ns\":" << number(s.grind_ns())
+    << ",\"kernel_grind_ns\":" << number(s.kernel_grind_ns())
+    << ",\"meshing_time_s\":" << number(s.meshing_time_s)
+    << ",\"meshing_share\":" << number(s.meshing_share()) << ",\"mesh_cache\":\"" << s.mesh_cache
+    << "\"}";
   return o.str();
 }
 

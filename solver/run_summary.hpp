@@ -44,6 +44,19 @@ struct RunSummary {
   double min_dt_s = 0, max_dt_s = 0;
   std::string status;  // "completed", "cancelled", "failed"
   std::string error;
+  // Where the time went (docs/performance.md). kernel_time_s: the element loop alone, CPU time
+  // measured in the run (robust to other processes on the cores; wall_time_s is not).
+  // meshing_time_s and mesh_cache ("hit", "miss", "replaced", "not-used") describe the mesh before
+  // the run; summarize() cannot know them, the caller sets them.
+  double kernel_time_s = 0;
+  double meshing_time_s = 0;
+  std::string mesh_cache = "not-used";
+
+  // Nanoseconds per element-step of the whole run (wall time) and of the element loop alone (CPU);
+  // the share of meshing in meshing + run. NaN when undefined (no steps).
+  double grind_ns() const;
+  double kernel_grind_ns() const;
+  double meshing_share() const;
 };
 
 RunSummary summarize(const Problem& problem, const RunResult& result);

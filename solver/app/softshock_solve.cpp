@@ -1,5 +1,7 @@
-// softshock-solve --spec SPEC.json --out DIR [--threads N]
+// softshock-solve --spec SPEC.json --out DIR [--threads N] [--mesh-cache DIR | --no-mesh-cache]
 // Runs one spec, writes DIR/result.h5 + DIR/result.xdmf, prints the JSON summary on stdout.
+// Meshes come from a local cache when it has them (solver/mesh_cache.hpp); Gmsh is loaded only
+// when a mesh must be built. Frames are written by a writer thread while the solver steps on.
 // Exit codes: 0 success, 2 invalid spec or usage, 1 run failure (partial file kept, marked
 // incomplete).
 #include <unistd.h>
@@ -10,9 +12,11 @@
 #include <cstdio>
 #include <cstring>
 #include <iostream>
+#include <memory>
 #include <string>
 
-#include "solver/io/result_file.hpp"
+#include "solver/io/async_result_writer.hpp"
+#include "solver/mesh_cache.hpp"
 #include "solver/run_spec.hpp"
 #include "solver/run_summary.hpp"
 #include "solver/simulation.hpp"
@@ -28,8 +32,13 @@ int usage(const char* msg) {
   if (msg) std::fprintf(stderr, "softshock-solve: %s\n", msg);
   std::fprintf(stderr,
                "usage: softshock-solve --spec SPEC.json --out DIR [--threads N] [--quiet]\n"
+               "                       [--mesh-cache DIR | --no-mesh-cache]\n"
                "  SPEC.json  run spec (protobuf JSON of softshock.v1.RunSpec; {} = baseline)\n"
                "  DIR        output directory: result.h5, result.xdmf\n"
+               "  --mesh-cache DIR  meshes built once and reused (default $SOFTSHOCK_MESH_CACHE,\n"
+               "             else $XDG_CACHE_HOME/softshock/meshes or ~/.cache/softshock/meshes;\n"
+               "             SOFTSHOCK_MESH_CACHE=off disables; SOFTSHOCK_MESH_CACHE_BYTES bounds\n"
+               "             it, default 512 MiB)\n"
                "exit codes: 0 success, 2 invalid spec or usage, 1 run failure\n");
   return 2;
 }
@@ -73,6 +82,7 @@ int main(int argc, char** argv) {
   std::string spec_path, out_dir;
   int threads = 0;
   bool quiet = false;
+  std::string mesh_cache_dir = softshock::default_mesh_cache_dir();
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     auto value = [&]() -> const char* { return i + 1 < argc ? argv[++i] : nullptr; };
@@ -93,6 +103,12 @@ int main(int argc, char** argv) {
         return usage("--threads: not a number");
       }
       if (threads < 1) return usage("--threads: must be >= 1");
+    } else if (a == "--mesh-cache") {
+      const char* v = value();
+      if (!v || !*v) return usage("--mesh-cache needs a directory");
+      mesh_cache_dir = v;
+    } else if (a == "--no-mesh-cache") {
+      mesh_cache_dir.clear();
     } else if (a == "--quiet") {
       quiet = true;
     } else if (a == "--help" || a == "-h") {
@@ -104,8 +120,20 @@ int main(int argc, char** argv) {
   }
   if (spec_path.empty() || out_dir.empty()) return usage("--spec and --out are required");
 
+  // A cache that cannot be used costs a re-mesh, never the run.
+  std::unique_ptr<softshock::MeshCache> cache;
+  if (!mesh_cache_dir.empty()) {
+    try {
+      cache = std::make_unique<softshock::MeshCache>(mesh_cache_dir,
+                                                     softshock::default_mesh_cache_bytes());
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "softshock-solve: warning: no mesh cache: %s\n", e.what());
+    }
+  }
+
   softshock::v1::RunSpec spec;
   softshock::Problem problem;
+  softshock::MeshingReport meshing;
   try {
     spec = softshock::read_spec_file(spec_path);
     if (threads > 0) spec.mutable_run()->set_threads(threads);
@@ -114,7 +142,11 @@ int main(int argc, char** argv) {
                                  "names a mesh uploaded to softshockd; here use mesh_file");
     }
     spec = softshock::normalize_spec(spec);
-    problem = softshock::make_problem(spec);
+    problem = softshock::make_problem(spec, {}, cache.get(), &meshing);
+    if (!meshing.warning.empty()) {
+      std::fprintf(stderr, "softshock-solve: warning: mesh not cached: %s\n",
+                   meshing.warning.c_str());
+    }
   } catch (const softshock::SpecError& e) {
     std::fprintf(stderr, "softshock-solve: invalid spec: %s\n", e.what());
     return 2;
@@ -126,8 +158,8 @@ int main(int argc, char** argv) {
   std::signal(SIGINT, on_signal);
   std::signal(SIGTERM, on_signal);
   try {
-    softshock::ResultWriter writer(out_dir, problem.mesh, softshock::spec_to_json(spec),
-                                   SOFTSHOCK_VERSION);
+    softshock::AsyncResultWriter writer(out_dir, problem.mesh, softshock::spec_to_json(spec),
+                                        SOFTSHOCK_VERSION);
     ProgressReporter reporter(quiet);
     softshock::RunControl control;
     control.cancel = &g_cancel;
@@ -135,7 +167,9 @@ int main(int argc, char** argv) {
     control.on_frame = [&](const softshock::FieldFrame& f) { writer.write_frame(f); };
     const auto result = softshock::run_simulation(problem, softshock::make_options(spec), control);
     reporter.done();
-    const auto summary = softshock::summarize(problem, result);
+    auto summary = softshock::summarize(problem, result);
+    summary.meshing_time_s = meshing.seconds;
+    summary.mesh_cache = softshock::to_string(meshing.cache);
     const bool complete = result.status == softshock::RunStatus::kCompleted;
     writer.finish(result.history, summary, complete, result.error);
     std::cout << softshock::summary_to_json(summary) << std::endl;

@@ -53,6 +53,8 @@ class CliWorkflowTest(DaemonTestCase):
                           ("energy injected", " J/m"), ("time scale R0/c0", " ns")]:
             line = next(l for l in summary_text.splitlines() if l.startswith(key + ":"))
             self.assertTrue(line.rstrip().endswith(unit), line)
+        self.assertIn("kernel grind time:", summary_text)
+        self.assertRegex(summary_text, r"meshing: .* s \(.* % of meshing \+ run; mesh cache: ")
         summary = self.cli_json("summary", job_id)
         self.assertGreater(int(summary["elements"]), 200)
         self.assertGreater(int(summary["steps"]), 0)

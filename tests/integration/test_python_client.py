@@ -35,6 +35,11 @@ class PythonClientTest(DaemonTestCase):
         self.assertGreater(summary["steps"], 0)
         self.assertAlmostEqual(summary["end_time"], 3e-8, delta=1e-10)
         self.assertGreater(summary["groups"]["time_scale"], 0)
+        # Where the time went: the element loop alone inside the run, and the meshing before it.
+        self.assertGreater(summary["kernel_time"], 0)
+        self.assertLess(summary["kernel_grind_time"], summary["grind_time"])
+        self.assertIn(summary["mesh_cache"], ("hit", "miss"))
+        self.assertTrue(0 <= summary["meshing_share"] < 1)
 
         series = c.series(job.id)
         self.assertIn("abar", series)

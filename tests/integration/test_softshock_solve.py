@@ -14,12 +14,15 @@ import h5py
 SOLVE = os.environ["SOFTSHOCK_SOLVE"]
 
 
-def solve(spec, out):
+def solve(spec, out, extra=(), env=None):
     with tempfile.NamedTemporaryFile("w", suffix=".json", delete=False) as f:
         json.dump(spec, f)
     try:
-        return subprocess.run([SOLVE, "--spec", f.name, "--out", out], capture_output=True,
-                              text=True, timeout=300)
+        # No mesh cache unless a test asks for one: tests stay out of the user's ~/.cache.
+        return subprocess.run([SOLVE, "--spec", f.name, "--out", out,
+                               *(extra or ["--no-mesh-cache"])],
+                              capture_output=True, text=True, timeout=300,
+                              env=None if env is None else {**os.environ, **env})
     finally:
         os.unlink(f.name)
 
@@ -91,6 +94,38 @@ class SoftshockSolve(unittest.TestCase):
             h5.attrs["format_version"] = 3
         with self.assertRaisesRegex(ValueError, "format_version 3"):
             ResultFile(h5_path)
+
+    def test_mesh_cache_reuses_the_mesh_and_the_summary_says_where_time_went(self):
+        spec = {"geometry": {"target_elements": 600}, "run": {"end_time": 2e-8}}
+        cache = os.path.join(self.tmp.name, "meshes")
+        first = solve(spec, self.out, ["--mesh-cache", cache])
+        self.assertEqual(first.returncode, 0, first.stderr)
+        # A hit never loads the Gmsh module: pointed at nothing, the run still succeeds...
+        no_gmsh = {"SOFTSHOCK_GMSH_MESHER": os.path.join(self.tmp.name, "no-such-module.so")}
+        second = solve(spec, self.out + "2", ["--mesh-cache", cache], env=no_gmsh)
+        self.assertEqual(second.returncode, 0, second.stderr)
+        # ... while a run that must mesh says why it cannot.
+        third = solve(spec, self.out + "3", ["--no-mesh-cache"], env=no_gmsh)
+        self.assertEqual(third.returncode, 1)
+        self.assertIn("SOFTSHOCK_GMSH_MESHER", third.stderr)
+        a, b = json.loads(first.stdout), json.loads(second.stdout)
+        self.assertEqual((a["mesh_cache"], b["mesh_cache"]), ("miss", "hit"))
+        self.assertEqual(len([n for n in os.listdir(cache) if n.endswith(".mesh")]), 1)
+        for key in ("max_abar", "energy_injected_J_per_m", "steps"):
+            self.assertEqual(a[key], b[key], key)  # same mesh, same arithmetic
+        with h5py.File(os.path.join(self.out, "result.h5"), "r") as f1, \
+                h5py.File(os.path.join(self.out + "2", "result.h5"), "r") as f2:
+            self.assertEqual(f1["mesh/nodes"][()].tobytes(), f2["mesh/nodes"][()].tobytes())
+            self.assertEqual(f1["mesh/triangles"][()].tobytes(),
+                             f2["mesh/triangles"][()].tobytes())
+        for s in (a, b):
+            self.assertGreater(s["kernel_time_s"], 0)
+            self.assertLess(s["kernel_time_s"], s["wall_time_s"])
+            self.assertAlmostEqual(s["kernel_grind_ns"],
+                                   s["kernel_time_s"] / (s["steps"] * s["elements"]) * 1e9)
+            self.assertGreater(s["grind_ns"], s["kernel_grind_ns"])
+            self.assertTrue(0 < s["meshing_share"] < 1)
+        self.assertLess(b["meshing_time_s"], a["meshing_time_s"])
 
     def test_invalid_spec_exits_2_naming_the_field(self):
         r = solve({"geometry": {"disk": {"radius": -1e-5}}}, self.out)

@@ -1,0 +1,93 @@
+#include "solver/io/async_result_writer.hpp"
+
+#include <tuple>
+#include <utility>
+
+namespace softshock {
+
+OrderedWorker::OrderedWorker(std::size_t capacity)
+    : capacity_(capacity < 1 ? 1 : capacity), thread_([this] { loop(); }) {}
+
+OrderedWorker::~OrderedWorker() {
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    stopping_ = true;
+    tasks_.clear();
+  }
+  changed_.notify_all();
+  thread_.join();
+}
+
+void OrderedWorker::rethrow_locked() const {
+  if (error_) std::rethrow_exception(error_);
+}
+
+void OrderedWorker::submit(std::function<void()> task) {
+  std::unique_lock<std::mutex> lock(mutex_);
+  changed_.wait(lock, [&] { return error_ || tasks_.size() < capacity_; });
+  rethrow_locked();
+  tasks_.push_back(std::move(task));
+  changed_.notify_all();
+}
+
+void OrderedWorker::drain() {
+  std::unique_lock<std::mutex> lock(mutex_);
+  changed_.wait(lock, [&] { return error_ || (tasks_.empty() && !running_task_); });
+  rethrow_locked();
+}
+
+void OrderedWorker::loop() {
+  std::unique_lock<std::mutex> lock(mutex_);
+  while (true) {
+    changed_.wait(lock, [&] { return stopping_ || !tasks_.empty(); });
+    if (stopping_) return;
+    std::function<void()> task = std::move(tasks_.front());
+    tasks_.pop_front();
+    running_task_ = true;
+    lock.unlock();
+    std::exception_ptr failure;
+    try {
+      task();
+    } catch (...) {
+      failure = std::current_exception();
+    }
+    task = nullptr;  // release what it captured (a frame) before taking the lock
+    lock.lock();
+    running_task_ = false;
+    if (failure && !error_) {
+      error_ = failure;
+      tasks_.clear();  // built on a failed write: skipped
+    }
+    changed_.notify_all();
+  }
+}
+
+AsyncResultWriter::AsyncResultWriter(const std::string& out_dir, const Mesh& mesh,
+                                     const std::string& spec_json,
+                                     const std::string& solver_version,
+                                     std::size_t max_queued_frames)
+    : writer_(std::make_unique<ResultWriter>(out_dir, mesh, spec_json, solver_version)),
+      h5_path_(writer_->h5_path()),
+      worker_(max_queued_frames) {}
+
+AsyncResultWriter::~AsyncResultWriter() = default;
+
+void AsyncResultWriter::write_frame(FieldFrame frame) {
+  ResultWriter* writer = writer_.get();
+  // std::function needs a copyable callable: the frame travels in a shared_ptr.
+  auto owned = std::make_shared<FieldFrame>(std::move(frame));
+  worker_.submit([writer, owned] { writer->write_frame(*owned); });
+}
+
+void AsyncResultWriter::finish(History history, RunSummary summary, bool complete,
+                               std::string error) {
+  ResultWriter* writer = writer_.get();
+  auto args = std::make_shared<std::tuple<History, RunSummary, std::string>>(
+      std::move(history), std::move(summary), std::move(error));
+  worker_.submit([writer, args, complete] {
+    writer->finish(std::get<0>(*args), std::get<1>(*args), complete, std::get<2>(*args));
+  });
+  worker_.drain();
+}
+
+}  // namespace softshock
