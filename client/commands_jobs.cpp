@@ -335,6 +335,16 @@ int cmd_summary(const GlobalOptions& g, const ParsedArgs& a) {
   kv.add("energy after pulse", fmt_num(s.energy_after_pulse()) + " J/m");
   kv.add("max A-bar (t-bar <= 4)", fmt_num(s.max_abar_first_cycle()));
   kv.add("max A-bar", fmt_num(s.max_abar()));
+  kv.add("A-bar at end", fmt_num(s.abar_end()));
+  kv.add("filtered A-bar (modes <= 32)",
+         "max " + fmt_num(s.max_abar_filtered()) +
+             " (t-bar <= 4: " + fmt_num(s.max_abar_filtered_first_cycle()) + "), at end " +
+             fmt_num(s.abar_filtered_end()));
+  kv.add("max element aspect ratio",
+         fmt_num(s.max_aspect_ratio()) +
+             (s.aspect_ratio_above_10() < 0
+                  ? " (never above 10)"
+                  : " (above 10 from " + fmt_ns(s.aspect_ratio_above_10()) + ")"));
   kv.add("dominant mode at end", std::to_string(s.dominant_mode_end()));
   kv.add("shock at centre", s.shock_at_center() < 0 ? "not detected" : fmt_ns(s.shock_at_center()));
   std::string rims;

@@ -84,7 +84,9 @@ const std::vector<Command>& commands() {
        "                 | status ID | wait ID | list | cancel ID\n"
        "                 | reduce ID [--quantity Q] [--tbar T] [--csv] [--png FILE]",
        "parameter grids: submit (a base spec x 1-3 axes), follow, cancel, reduce to a table,\n"
-       "           CSV or heat map (quantities: max_abar_first_cycle, max_abar, abar_at --tbar T,\n"
+       "           CSV or heat map (quantities: max_abar_first_cycle, max_abar, abar_end,\n"
+       "           max_abar_filtered[_first_cycle], abar_filtered_end, max_aspect_ratio, abar_at "
+       "--tbar T,\n"
        "           dominant_mode_end, energy_injected, energy_after_pulse, shock_at_center, "
        "wall_time)",
        {{"wait", false},

@@ -184,6 +184,17 @@ ALTER TABLE job_summaries ADD COLUMN kernel_time REAL NOT NULL DEFAULT 0;
 ALTER TABLE job_summaries ADD COLUMN meshing_time REAL NOT NULL DEFAULT 0;
 ALTER TABLE job_summaries ADD COLUMN mesh_cache TEXT NOT NULL DEFAULT 'not-used';
 )sql",
+    // 4 -> 5: the late-time figures (RunSummary): A-bar at the end and the filtered A-bar (rebuilt
+    // from the low modes), the largest element aspect ratio and when it first exceeded 10
+    // (-1 = never). Older rows: 0, and -1 for the time.
+    R"sql(
+ALTER TABLE job_summaries ADD COLUMN max_abar_filtered_first_cycle REAL NOT NULL DEFAULT 0;
+ALTER TABLE job_summaries ADD COLUMN max_abar_filtered REAL NOT NULL DEFAULT 0;
+ALTER TABLE job_summaries ADD COLUMN abar_end REAL NOT NULL DEFAULT 0;
+ALTER TABLE job_summaries ADD COLUMN abar_filtered_end REAL NOT NULL DEFAULT 0;
+ALTER TABLE job_summaries ADD COLUMN max_aspect_ratio REAL NOT NULL DEFAULT 0;
+ALTER TABLE job_summaries ADD COLUMN aspect_ratio_above_10 REAL NOT NULL DEFAULT -1;
+)sql",
 };
 
 std::string blob_of(const std::vector<double>& v) {
@@ -401,7 +412,13 @@ std::string summary_columns(const std::string& t = "") {
                         "error",
                         "kernel_time",
                         "meshing_time",
-                        "mesh_cache"}) {
+                        "mesh_cache",
+                        "max_abar_filtered_first_cycle",
+                        "max_abar_filtered",
+                        "abar_end",
+                        "abar_filtered_end",
+                        "max_aspect_ratio",
+                        "aspect_ratio_above_10"}) {
     out += (out.empty() ? "" : ", ") + t + c;
   }
   return out;
@@ -463,9 +480,15 @@ RunSummary read_summary(const Connection::Stmt& s, int c) {
   r.kernel_time_s = s.dbl(c + 23);
   r.meshing_time_s = s.dbl(c + 24);
   r.mesh_cache = s.text(c + 25);
+  r.max_abar_filtered_first_cycle = s.dbl(c + 26);
+  r.max_abar_filtered = s.dbl(c + 27);
+  r.abar_end = s.dbl(c + 28);
+  r.abar_filtered_end = s.dbl(c + 29);
+  r.max_aspect_ratio = s.dbl(c + 30);
+  r.aspect_ratio_above_10_s = s.dbl(c + 31);
   return r;
 }
-constexpr int kSummaryColumnCount = 26;
+constexpr int kSummaryColumnCount = 32;
 
 // A nullable REAL column: NaN for NULL.
 double nullable_double(const Connection::Stmt& s, int col) {
@@ -527,8 +550,9 @@ void copy_summary(Connection& c, const std::string& id, const std::string& sourc
       "end_time, pbar, tbar_pulse, mubar, gamma, c1, c2, time_scale, energy_injected, "
       "energy_after_pulse, max_abar_first_cycle, max_abar, dominant_mode_end, shock_at_center, "
       "rim_reflections, min_dt, max_dt, status, error, mode_count, mode_times, mode_amplitudes, "
-      "abar_times, abar_values, kernel_time, meshing_time, mesh_cache FROM job_summaries "
-      "WHERE job_id = ?");
+      "abar_times, abar_values, kernel_time, meshing_time, mesh_cache, "
+      "max_abar_filtered_first_cycle, max_abar_filtered, abar_end, abar_filtered_end, "
+      "max_aspect_ratio, aspect_ratio_above_10 FROM job_summaries WHERE job_id = ?");
   s.bind(1, id).bind(2, source);
   s.run();
 }
@@ -818,9 +842,11 @@ bool Catalogue::finish(const std::string& id, int attempt, JobState terminal,
         "end_time, pbar, tbar_pulse, mubar, gamma, c1, c2, time_scale, energy_injected, "
         "energy_after_pulse, max_abar_first_cycle, max_abar, dominant_mode_end, shock_at_center, "
         "rim_reflections, min_dt, max_dt, status, error, mode_count, mode_times, "
-        "mode_amplitudes, abar_times, abar_values, kernel_time, meshing_time, mesh_cache) "
+        "mode_amplitudes, abar_times, abar_values, kernel_time, meshing_time, mesh_cache, "
+        "max_abar_filtered_first_cycle, max_abar_filtered, abar_end, abar_filtered_end, "
+        "max_aspect_ratio, aspect_ratio_above_10) "
         "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, "
-        "?, ?, ?, ?, ?)");
+        "?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)");
     // Positional binds in column order (one statement each: clear sequencing).
     int i = 0;
     auto put = [&](auto v) { s.bind(++i, v); };
@@ -857,6 +883,12 @@ bool Catalogue::finish(const std::string& id, int attempt, JobState terminal,
     put(r.kernel_time_s);
     put(r.meshing_time_s);
     put(r.mesh_cache);
+    put(r.max_abar_filtered_first_cycle);
+    put(r.max_abar_filtered);
+    put(r.abar_end);
+    put(r.abar_filtered_end);
+    put(r.max_aspect_ratio);
+    put(r.aspect_ratio_above_10_s);
     s.run();
     // The solver's groups are exact (a mesh_file job's R0 is known only once meshed).
     refresh_query_columns(c, id);

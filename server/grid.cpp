@@ -304,6 +304,11 @@ const std::vector<GridQuantity>& grid_quantities() {
   static const std::vector<GridQuantity> quantities = {
       {"max_abar_first_cycle", "1", false},
       {"max_abar", "1", false},
+      {"abar_end", "1", false},
+      {"max_abar_filtered_first_cycle", "1", false},
+      {"max_abar_filtered", "1", false},
+      {"abar_filtered_end", "1", false},
+      {"max_aspect_ratio", "1", false},
       {"abar_at", "1", true},
       {"dominant_mode_end", "1", false},
       {"energy_injected", "J/m", false},
@@ -326,6 +331,11 @@ double grid_quantity(const GridQuantity& quantity, const StoredSummary& stored, 
   const std::string name = quantity.name;
   if (name == "max_abar_first_cycle") return s.max_abar_first_cycle;
   if (name == "max_abar") return s.max_abar;
+  if (name == "abar_end") return s.abar_end;
+  if (name == "max_abar_filtered_first_cycle") return s.max_abar_filtered_first_cycle;
+  if (name == "max_abar_filtered") return s.max_abar_filtered;
+  if (name == "abar_filtered_end") return s.abar_filtered_end;
+  if (name == "max_aspect_ratio") return s.max_aspect_ratio;
   if (name == "dominant_mode_end") return s.dominant_mode_end;
   if (name == "energy_injected") return s.energy_injected_J_per_m;
   if (name == "energy_after_pulse") return s.energy_after_pulse_J_per_m;

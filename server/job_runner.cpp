@@ -102,6 +102,15 @@ RunSummary parse_summary_json(const std::string& json) {
   if (f.find("kernel_time_s") != f.end()) r.kernel_time_s = json_number(s, "kernel_time_s");
   if (f.find("meshing_time_s") != f.end()) r.meshing_time_s = json_number(s, "meshing_time_s");
   if (f.find("mesh_cache") != f.end()) r.mesh_cache = text("mesh_cache");
+  auto optional = [&](const char* key, double& out) {
+    if (f.find(key) != f.end()) out = json_number(s, key);
+  };
+  optional("max_abar_filtered_first_cycle", r.max_abar_filtered_first_cycle);
+  optional("max_abar_filtered", r.max_abar_filtered);
+  optional("abar_end", r.abar_end);
+  optional("abar_filtered_end", r.abar_filtered_end);
+  optional("max_aspect_ratio", r.max_aspect_ratio);
+  optional("aspect_ratio_above_10_s", r.aspect_ratio_above_10_s);
   return r;
 }
 

@@ -319,6 +319,12 @@ void fill_summary(const std::string& id, const RunSummary& s, v1::JobSummary* re
   resp->set_meshing_time(s.meshing_time_s);
   resp->set_meshing_share(s.meshing_share());
   resp->set_mesh_cache(s.mesh_cache);
+  resp->set_abar_end(s.abar_end);
+  resp->set_max_abar_filtered_first_cycle(s.max_abar_filtered_first_cycle);
+  resp->set_max_abar_filtered(s.max_abar_filtered);
+  resp->set_abar_filtered_end(s.abar_filtered_end);
+  resp->set_max_aspect_ratio(s.max_aspect_ratio);
+  resp->set_aspect_ratio_above_10(s.aspect_ratio_above_10_s);
 }
 
 // request_id and labels of SubmitJob and SubmitGrid.

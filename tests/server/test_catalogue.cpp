@@ -43,12 +43,12 @@ class CatalogueTest : public ::testing::Test {
 TEST_F(CatalogueTest, MigrationsAreIdempotentAndDataSurvivesReopen) {
   {
     Catalogue c(path_);
-    EXPECT_EQ(c.schema_version(), 4);
+    EXPECT_EQ(c.schema_version(), 5);
     c.insert(job("a", 3, 0, {{"study", "s1"}}));
   }
   for (int i = 0; i < 2; ++i) {
     Catalogue c(path_);
-    EXPECT_EQ(c.schema_version(), 4);
+    EXPECT_EQ(c.schema_version(), 5);
     auto a = c.get("a");
     ASSERT_TRUE(a);
     EXPECT_EQ(a->state, JobState::kQueued);
@@ -88,6 +88,12 @@ TEST_F(CatalogueTest, TransitionsAreConditional) {
   StoredSummary summary;
   summary.summary.elements = 200;
   summary.summary.max_abar = 0.25;
+  summary.summary.abar_end = 0.125;
+  summary.summary.max_abar_filtered = 0.2;
+  summary.summary.abar_filtered_end = 0.1;
+  summary.summary.max_abar_filtered_first_cycle = 0.05;
+  summary.summary.max_aspect_ratio = 7.5;
+  summary.summary.aspect_ratio_above_10_s = -1;
   summary.summary.rim_reflections_s = {1e-9, 2e-9};
   summary.mode_count = 3;
   summary.mode_times = {0, 4e-9};
@@ -110,6 +116,12 @@ TEST_F(CatalogueTest, TransitionsAreConditional) {
   ASSERT_TRUE(stored);
   EXPECT_EQ(stored->summary.elements, 200u);
   EXPECT_DOUBLE_EQ(stored->summary.max_abar, 0.25);
+  EXPECT_DOUBLE_EQ(stored->summary.abar_end, 0.125);
+  EXPECT_DOUBLE_EQ(stored->summary.max_abar_filtered, 0.2);
+  EXPECT_DOUBLE_EQ(stored->summary.abar_filtered_end, 0.1);
+  EXPECT_DOUBLE_EQ(stored->summary.max_abar_filtered_first_cycle, 0.05);
+  EXPECT_DOUBLE_EQ(stored->summary.max_aspect_ratio, 7.5);
+  EXPECT_DOUBLE_EQ(stored->summary.aspect_ratio_above_10_s, -1);
   EXPECT_EQ(stored->summary.rim_reflections_s, (std::vector<double>{1e-9, 2e-9}));
   EXPECT_EQ(stored->mode_count, 3);
   EXPECT_EQ(stored->mode_amplitudes, summary.mode_amplitudes);

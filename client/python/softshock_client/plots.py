@@ -157,6 +157,11 @@ FIELD_UNITS = {
 QUANTITY_LABELS = {
     "max_abar_first_cycle": r"max $\bar{{A}}$ over $0 \leq \bar{{t}} \leq 4$",
     "max_abar": r"max $\bar{{A}}$ over the run",
+    "abar_end": r"$\bar{{A}}$ at the end",
+    "max_abar_filtered_first_cycle": r"max filtered $\bar{{A}}$ over $0 \leq \bar{{t}} \leq 4$",
+    "max_abar_filtered": r"max filtered $\bar{{A}}$ over the run",
+    "abar_filtered_end": r"filtered $\bar{{A}}$ at the end",
+    "max_aspect_ratio": "largest element aspect ratio",
     "abar_at": r"$\bar{{A}}$ at $\bar{{t}}$ = {tbar:g}",
     "dominant_mode_end": "dominant rim mode at the end",
     "energy_injected": "energy injected",
