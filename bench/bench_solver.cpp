@@ -1,5 +1,6 @@
-// Solver grind time: nanoseconds per element per step (LS-DYNA's "time per zone cycle"), on
-// Gmsh disks of ~16.5k, ~66k and ~264k elements, with 1 and 2 element-loop threads.
+// Solver grind time: nanoseconds per element per step (LS-DYNA's "time per zone cycle"), on the
+// default disk (concentric rings, the default element and viscosities) of ~16.5k, ~66k and ~264k
+// elements, with 1 and 2 element-loop threads.
 // Each iteration runs the baseline problem for `kSteps` steps and subtracts a run of
 // `kWarm` steps, so meshing and set-up are excluded; diagnostics are off (history every 1 s).
 //   build/bench/bench_solver --benchmark_repetitions=5 --benchmark_report_aggregates_only=true
