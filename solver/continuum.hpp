@@ -66,18 +66,22 @@ inline double longitudinal_speed_sq(double bulk_modulus, double mu, double rho0,
   return (bulk_modulus + 4.0 / 3.0 * mu) * j / rho0;
 }
 
-// Squared smallest altitude of the current triangle: (2 A)^2 / (longest edge)^2, where
-// 2A = e1 x e2 (positive for a valid counter-clockwise element).
-inline double smallest_altitude_sq(double e1x, double e1y, double e2x, double e2y) {
-  const double twice_area = e1x * e2y - e1y * e2x;
+// Squared length of the longest edge of the triangle with edges e1, e2 (and e2 - e1).
+inline double longest_edge_sq(double e1x, double e1y, double e2x, double e2y) {
   const double l1 = e1x * e1x + e1y * e1y;
   const double l2 = e2x * e2x + e2y * e2y;
   const double l3 = (e2x - e1x) * (e2x - e1x) + (e2y - e1y) * (e2y - e1y);
   // Plain comparisons rather than std::fmax (whose NaN rules become a library call and stop
   // the element loop vectorising); a NaN here belongs to an element flagged as invalid anyway.
   const double l12 = l1 > l2 ? l1 : l2;
-  const double lmax = l12 > l3 ? l12 : l3;
-  return twice_area * twice_area / lmax;
+  return l12 > l3 ? l12 : l3;
+}
+
+// Squared smallest altitude of the current triangle: (2 A)^2 / (longest edge)^2, where
+// 2A = e1 x e2 (positive for a valid counter-clockwise element).
+inline double smallest_altitude_sq(double e1x, double e1y, double e2x, double e2y) {
+  const double twice_area = e1x * e2y - e1y * e2x;
+  return twice_area * twice_area / longest_edge_sq(e1x, e1y, e2x, e2y);
 }
 
 // Viscous first Piola-Kirchhoff stress P_v = J sigma_v F^-T = sigma_v cof(F), with the Cauchy
@@ -141,12 +145,7 @@ inline double stable_step_sq(double h_sq, double c_sq, double longitudinal_visco
 
 // Aspect ratio of the current triangle: longest edge^2 / (2 area) (equilateral: 2/sqrt(3)).
 inline double aspect_ratio(double e1x, double e1y, double e2x, double e2y) {
-  const double twice_area = e1x * e2y - e1y * e2x;
-  const double l1 = e1x * e1x + e1y * e1y;
-  const double l2 = e2x * e2x + e2y * e2y;
-  const double l3 = (e2x - e1x) * (e2x - e1x) + (e2y - e1y) * (e2y - e1y);
-  const double l12 = l1 > l2 ? l1 : l2;
-  return (l12 > l3 ? l12 : l3) / twice_area;
+  return longest_edge_sq(e1x, e1y, e2x, e2y) / (e1x * e2y - e1y * e2x);
 }
 
 }  // namespace softshock::continuum

@@ -17,6 +17,7 @@
 #include <thread>
 #include <vector>
 
+#include "scratch_dir.hpp"
 #include "solver/io/async_result_writer.hpp"
 
 namespace softshock {
@@ -25,23 +26,10 @@ namespace {
 namespace fs = std::filesystem;
 using namespace std::chrono_literals;
 
-class ScratchDir {
+// ScratchDir(prefix): tests/solver/scratch_dir.hpp.
+class ScratchDir : public testing::ScratchDir {
  public:
-  ScratchDir() {
-    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    path_ = fs::temp_directory_path() / ("softshock-async-" + std::to_string(::getpid()) + "-" +
-                                         info->test_suite_name() + "-" + info->name());
-    fs::remove_all(path_);
-    fs::create_directories(path_);
-  }
-  ~ScratchDir() {
-    std::error_code ignored;
-    fs::remove_all(path_, ignored);
-  }
-  std::string str(const std::string& sub = "") const { return (path_ / sub).string(); }
-
- private:
-  fs::path path_;
+  ScratchDir() : testing::ScratchDir("async") {}
 };
 
 Mesh small_mesh() {

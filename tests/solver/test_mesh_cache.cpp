@@ -16,6 +16,7 @@
 #include <thread>
 #include <vector>
 
+#include "scratch_dir.hpp"
 #include "solver/gmsh_mesher.hpp"
 #include "solver/mesh_cache.hpp"
 #include "solver/run_spec.hpp"
@@ -25,23 +26,10 @@ namespace {
 
 namespace fs = std::filesystem;
 
-class ScratchDir {
+// ScratchDir(prefix): tests/solver/scratch_dir.hpp.
+class ScratchDir : public testing::ScratchDir {
  public:
-  ScratchDir() {
-    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    path_ = fs::temp_directory_path() / ("softshock-mesh-cache-" + std::to_string(::getpid()) +
-                                         "-" + info->test_suite_name() + "-" + info->name());
-    fs::remove_all(path_);
-    fs::create_directories(path_);
-  }
-  ~ScratchDir() {
-    std::error_code ignored;
-    fs::remove_all(path_, ignored);
-  }
-  std::string str() const { return path_.string(); }
-
- private:
-  fs::path path_;
+  ScratchDir() : testing::ScratchDir("mesh-cache") {}
 };
 
 // Byte-for-byte equality of every array (== on doubles would let -0.0 and 0.0 pass).

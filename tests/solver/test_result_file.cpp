@@ -19,6 +19,7 @@
 #include <thread>
 #include <vector>
 
+#include "scratch_dir.hpp"
 #include "solver/io/result_file.hpp"
 
 namespace softshock {
@@ -26,25 +27,10 @@ namespace {
 
 namespace fs = std::filesystem;
 
-// A scratch folder per test: ctest runs the discovered tests as parallel processes.
-class ScratchDir {
+// ScratchDir(prefix): tests/solver/scratch_dir.hpp.
+class ScratchDir : public testing::ScratchDir {
  public:
-  ScratchDir() {
-    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    path_ = fs::temp_directory_path() / ("softshock-result-" + std::to_string(::getpid()) + "-" +
-                                         info->test_suite_name() + "-" + info->name());
-    fs::remove_all(path_);
-    fs::create_directories(path_);
-  }
-  ~ScratchDir() {
-    std::error_code ignored;
-    fs::remove_all(path_, ignored);
-  }
-  const fs::path& path() const { return path_; }
-  std::string str(const std::string& sub = "") const { return (path_ / sub).string(); }
-
- private:
-  fs::path path_;
+  ScratchDir() : testing::ScratchDir("result") {}
 };
 
 // Helpers marked [[maybe_unused]] serve only the unit tests, which the integration build omits.
