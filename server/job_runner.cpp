@@ -124,18 +124,6 @@ StoredSummary stored_summary_from_result(const std::string& h5_path, bool* compl
   return stored;
 }
 
-void check_mesh_file(const v1::RunSpec& spec) {
-  if (spec.geometry().shape_case() != v1::Geometry::kMeshFile) return;
-  const fs::path p(spec.geometry().mesh_file());
-  if (p.empty() || p.is_absolute()) {
-    throw SpecError("geometry.mesh_file",
-                    "must be a relative path under the daemon's DATA/meshes/ folder");
-  }
-  for (const auto& part : p) {
-    if (part == "..") throw SpecError("geometry.mesh_file", "must not contain '..'");
-  }
-}
-
 std::string failure_reason(FailureKind kind) {
   switch (kind) {
     case FailureKind::kElementInversion:
@@ -181,7 +169,9 @@ StoredSummary make_stored_summary(const RunSummary& summary, const History& hist
 }
 
 JobRunner::JobRunner(RunnerConfig config, Catalogue& catalogue, JobEvents& events)
-    : config_(std::move(config)), catalogue_(catalogue), events_(events) {}
+    : config_(std::move(config)), catalogue_(catalogue), events_(events) {
+  config_.limits.mesh_root = meshes_dir();  // never a client-chosen path elsewhere
+}
 
 std::string JobRunner::job_dir(const std::string& id) const {
   return (fs::path(config_.data_dir) / "jobs" / id).string();
@@ -225,6 +215,36 @@ bool JobRunner::reuse_identical(const JobRecord& job) const {
 }
 
 void JobRunner::run(const std::string& id, CancelToken& cancel) {
+  try {
+    run_job(id, cancel);
+  } catch (const std::exception& e) {
+    fail_running(id, std::string("internal error: ") + e.what());
+  } catch (...) {
+    fail_running(id, "internal error: unknown exception");
+  }
+}
+
+// No job is left RUNNING by an error of ours: whatever threw, the job is recorded FAILED with
+// the reason (if the catalogue can take a write at all; if not, start-up recovery requeues it).
+void JobRunner::fail_running(const std::string& id, const std::string& error) {
+  log_error("job ", id, ": ", error);
+  try {
+    if (auto job = catalogue_.get(id); job && job->state == JobState::kRunning) {
+      if (catalogue_.finish(id, job->attempt, JobState::kFailed, reason::kInternal, error, "",
+                            job->progress, nullptr, now_us())) {
+        log_info("job ", id, " FAILED ", reason::kInternal, ": ", error);
+      }
+    }
+  } catch (const std::exception& e) {
+    log_error("job ", id,
+              ": cannot record the failure either (stays RUNNING until the next "
+              "start-up requeues it): ",
+              e.what());
+  }
+  events_.forget(id);  // wakes watchers
+}
+
+void JobRunner::run_job(const std::string& id, CancelToken& cancel) {
   using Clock = std::chrono::steady_clock;
   const auto started = Clock::now();
   // An identical run may have finished while this one waited in the queue.
@@ -240,8 +260,16 @@ void JobRunner::run(const std::string& id, CancelToken& cancel) {
   JobProgressRecord last_progress;
   auto finish = [&](JobState state, const std::string& why, const std::string& error,
                     const std::string& result_path, const StoredSummary* summary) {
-    const bool ok = catalogue_.finish(id, job->attempt, state, why, error, result_path,
-                                      last_progress, summary, now_us());
+    bool ok = false;
+    try {
+      ok = catalogue_.finish(id, job->attempt, state, why, error, result_path, last_progress,
+                             summary, now_us());
+    } catch (const std::exception& e) {
+      // The outcome could not be recorded (catalogue error, disk full): a plain FAILED needs
+      // no summary, so it may still commit.
+      fail_running(id, "recording the " + std::string(to_string(state)) + " outcome: " + e.what());
+      return;
+    }
     if (!ok) {
       log_warning("job ", id, ": ", to_string(state), " not recorded (job changed meanwhile)");
     } else if (state == JobState::kSucceeded) {
@@ -265,14 +293,9 @@ void JobRunner::run(const std::string& id, CancelToken& cancel) {
   Problem problem;
   SolverOptions options;
   try {
+    // limits.mesh_root confines geometry.mesh_file to DATA/meshes/ (solver/mesh_file_path.hpp).
     spec = normalize_spec(parse_stored_spec(job->spec_json), config_.limits);
-    v1::RunSpec meshing_spec = spec;
-    if (spec.geometry().shape_case() == v1::Geometry::kMeshFile) {
-      check_mesh_file(spec);
-      meshing_spec.mutable_geometry()->set_mesh_file(
-          (fs::path(meshes_dir()) / spec.geometry().mesh_file()).string());
-    }
-    problem = make_problem(meshing_spec, config_.limits);
+    problem = make_problem(spec, config_.limits);
     options = make_options(spec);
     options.threads = std::max(1, config_.solver_threads);
   } catch (const SpecError& e) {

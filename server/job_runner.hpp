@@ -25,11 +25,15 @@ class JobRunner {
  public:
   JobRunner(RunnerConfig config, Catalogue& catalogue, JobEvents& events);
 
-  // The scheduler's work function.
+  // The scheduler's work function. Never leaves the job RUNNING because of an exception: it is
+  // then recorded FAILED with reason INTERNAL and the error.
   void run(const std::string& id, CancelToken& cancel);
 
   std::string job_dir(const std::string& id) const;
+  // DATA/meshes/: the only folder geometry.mesh_file is read from (the runner's limits carry
+  // it as mesh_root).
   std::string meshes_dir() const;
+  const SpecLimits& limits() const { return config_.limits; }
   // Removes leftovers of an interrupted attempt (result.h5.tmp and friends) in a job folder.
   void remove_stale_files(const std::string& id) const;
   // Gives job `id` the finished result files at source_result_path (hard links); returns its
@@ -40,14 +44,13 @@ class JobRunner {
   bool reuse_identical(const JobRecord& job) const;
 
  private:
+  void run_job(const std::string& id, CancelToken& cancel);
+  void fail_running(const std::string& id, const std::string& error);
+
   RunnerConfig config_;
   Catalogue& catalogue_;
   JobEvents& events_;
 };
-
-// The daemon's rule for geometry.mesh_file: a relative path without "..", resolved under
-// DATA/meshes/ — clients must not make the server open arbitrary files. Throws SpecError.
-void check_mesh_file(const v1::RunSpec& spec);
 
 // FAILED reason for a solver failure: ELEMENT_INVERSION, NON_FINITE, TIME_STEP_COLLAPSE or
 // INTERNAL.

@@ -221,7 +221,10 @@ SimulationService::SimulationService(ServiceConfig config, Catalogue& catalogue,
       events_(events),
       runner_(runner),
       auth_(auth),
-      id_random_(std::random_device{}()) {}
+      id_random_(std::random_device{}()) {
+  // Specs are validated against the runner's DATA/meshes/ (mesh_file never leaves it).
+  config_.limits.mesh_root = runner_.meshes_dir();
+}
 
 std::string SimulationService::new_job_id() {
   std::lock_guard lock(id_mutex_);
@@ -365,7 +368,6 @@ Status SimulationService::submit(grpc::ServerContext* ctx, const v1::SubmitJobRe
   CanonicalSpec spec;
   try {
     spec = canonical_spec(req.spec(), config_.limits);
-    check_mesh_file(spec.spec);
   } catch (const SpecError& e) {
     return spec_invalid(ctx, "spec", e);
   }
@@ -930,7 +932,6 @@ Status SimulationService::submit_grid(grpc::ServerContext* ctx, const v1::Submit
   GridPlan plan;
   try {
     base = canonical_spec(req.base_spec(), config_.limits);
-    check_mesh_file(base.spec);
   } catch (const SpecError& e) {
     return spec_invalid(ctx, "base_spec", e);
   }

@@ -19,6 +19,7 @@
 
 #include "server/log.hpp"
 #include "solver/io/result_file.hpp"
+#include "solver/mesh_file_path.hpp"
 
 extern char** environ;
 
@@ -122,11 +123,32 @@ std::string sh_quote(const std::string& s) {
   return out + "'";
 }
 
+// Written and fsynced (file and folder): the batch and id files must outlive a power loss
+// right after sbatch, or the start-up check could not find what was submitted.
 void write_text(const fs::path& path, const std::string& text) {
-  std::ofstream out(path, std::ios::trunc | std::ios::binary);
-  out << text;
-  out.close();
-  if (!out) throw std::runtime_error("cannot write " + path.string());
+  const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  if (fd < 0)
+    throw std::runtime_error("cannot write " + path.string() + ": " + std::strerror(errno));
+  std::size_t done = 0;
+  bool ok = true;
+  while (ok && done < text.size()) {
+    const ssize_t n = ::write(fd, text.data() + done, text.size() - done);
+    if (n < 0 && errno == EINTR) continue;
+    ok = n > 0;
+    if (ok) done += static_cast<std::size_t>(n);
+  }
+  const int saved = errno;
+  ok = ok && ::fsync(fd) == 0;
+  ::close(fd);
+  if (!ok) {
+    throw std::runtime_error("cannot write " + path.string() + ": " +
+                             std::strerror(saved ? saved : errno));
+  }
+  const int dir = ::open(path.parent_path().c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+  if (dir >= 0) {
+    ::fsync(dir);
+    ::close(dir);
+  }
 }
 
 std::string read_text(const fs::path& path) {
@@ -328,6 +350,7 @@ void SlurmExecutor::loop() {
         send_cancels();
         return;
       }
+      record_unmarked();
       if (!adopted_) adopt_submitted_before_crash();
       if (adopted_) submit_pending();
       send_cancels();
@@ -413,7 +436,79 @@ void SlurmExecutor::submit_pending() {
   std::vector<JobRecord> singles;
   std::map<std::string, std::vector<JobRecord>> grids;
   std::set<std::string> taken;
-  for (const auto& p : batch) {
+  std::size_t next = 0;  // batch[next..] not looked at yet
+  // A catalogue error while sorting the batch out puts back what was not sorted yet (and what
+  // was sorted but not sent): those jobs wait for the next round instead of being dropped.
+  auto put_back = [&] {
+    std::set<std::string> back;
+    for (std::size_t k = next; k < batch.size(); ++k) back.insert(batch[k].id);
+    for (const auto& j : singles) back.insert(j.id);
+    for (const auto& [g, points] : grids) {
+      for (const auto& j : points) back.insert(j.id);
+    }
+    std::lock_guard lock(mutex_);
+    for (const auto& p : batch) {
+      if (back.count(p.id) && std::none_of(pending_.begin(), pending_.end(),
+                                           [&](const Pending& q) { return q.id == p.id; })) {
+        pending_.push_back(p);
+      }
+    }
+  };
+  try {
+    collect_batches(batch, next, singles, grids, taken);
+  } catch (...) {
+    put_back();
+    throw;
+  }
+  {
+    // Points taken with their grid are no longer waiting for a later round.
+    std::lock_guard lock(mutex_);
+    std::erase_if(pending_, [&](const Pending& p) { return taken.count(p.id) != 0; });
+  }
+  for (const auto& [grid, points] : grids) {
+    for (std::size_t first = 0; first < points.size(); first += kMaxArrayTasks) {
+      const auto last = std::min(points.size(), first + kMaxArrayTasks);
+      submit_batch_safely({points.begin() + static_cast<std::ptrdiff_t>(first),
+                           points.begin() + static_cast<std::ptrdiff_t>(last)});
+    }
+  }
+  for (const auto& job : singles) submit_batch_safely({job});
+}
+
+// One batch's failure is its own: its jobs are failed with the reason (they never reached
+// Slurm), or, if even that cannot be recorded, wait for the next round; other batches go on.
+void SlurmExecutor::submit_batch_safely(const std::vector<JobRecord>& jobs) {
+  try {
+    submit_batch(jobs);
+    return;
+  } catch (const std::exception& e) {
+    log_error("slurm: submitting ", jobs.size(), " job(s) failed: ", e.what());
+    for (const auto& job : jobs) {
+      bool tracked = false;
+      {
+        std::lock_guard lock(mutex_);
+        tracked = jobs_.count(job.id) != 0;
+      }
+      if (tracked) continue;  // it did reach Slurm
+      try {
+        fail_unsubmitted(job, reason::kInternal,
+                         std::string("preparing the Slurm batch: ") + e.what());
+      } catch (const std::exception& again) {
+        log_error("slurm: job ", job.id, ": cannot record the failure (", again.what(),
+                  "); retrying next round");
+        std::lock_guard lock(mutex_);
+        pending_.push_back({job.id, job.priority, job.seq});
+      }
+    }
+  }
+}
+
+void SlurmExecutor::collect_batches(const std::vector<Pending>& batch, std::size_t& next,
+                                    std::vector<JobRecord>& singles,
+                                    std::map<std::string, std::vector<JobRecord>>& grids,
+                                    std::set<std::string>& taken) {
+  for (; next < batch.size(); ++next) {
+    const Pending& p = batch[next];
     if (taken.count(p.id)) continue;
     auto job = catalogue_.get(p.id);
     if (!job || job->state != JobState::kQueued) continue;  // cancelled or deleted meanwhile
@@ -441,19 +536,6 @@ void SlurmExecutor::submit_pending() {
       taken.insert(point->id);
     }
   }
-  {
-    // Points taken with their grid are no longer waiting for a later round.
-    std::lock_guard lock(mutex_);
-    std::erase_if(pending_, [&](const Pending& p) { return taken.count(p.id) != 0; });
-  }
-  for (const auto& [grid, points] : grids) {
-    for (std::size_t first = 0; first < points.size(); first += kMaxArrayTasks) {
-      const auto last = std::min(points.size(), first + kMaxArrayTasks);
-      submit_batch({points.begin() + static_cast<std::ptrdiff_t>(first),
-                    points.begin() + static_cast<std::ptrdiff_t>(last)});
-    }
-  }
-  for (const auto& job : singles) submit_batch({job});
 }
 
 void SlurmExecutor::submit_batch(const std::vector<JobRecord>& jobs) {
@@ -468,8 +550,8 @@ void SlurmExecutor::submit_batch(const std::vector<JobRecord>& jobs) {
       }
       v1::RunSpec spec = parse_stored_spec(job.spec_json);
       if (spec.geometry().shape_case() == v1::Geometry::kMeshFile) {
-        check_mesh_file(spec);
-        const fs::path source = fs::path(runner_.meshes_dir()) / spec.geometry().mesh_file();
+        const fs::path source =
+            resolve_mesh_file(runner_.meshes_dir(), spec.geometry().mesh_file());
         const fs::path copy = dir / source.filename();
         fs::copy_file(source, copy, fs::copy_options::overwrite_existing);
         spec.mutable_geometry()->set_mesh_file(copy.string());
@@ -532,14 +614,22 @@ void SlurmExecutor::submit_batch(const std::vector<JobRecord>& jobs) {
   for (std::size_t k = 0; k < ready.size(); ++k) {
     marks.emplace_back(ready[k].id, ready.size() == 1 ? base : base + "_" + std::to_string(k));
   }
-  catalogue_.mark_submitted(marks);
   {
+    // Tracked before the commit: a job on Slurm is watched (and finished) even if the commit
+    // fails; the commit is then retried every round (and the .ids file covers a crash).
     std::lock_guard lock(mutex_);
     for (std::size_t k = 0; k < ready.size(); ++k) {
       Tracked& t = jobs_[ready[k].id];
       t.slurm_id = marks[k].second;
       t.attempt = ready[k].attempt;
     }
+  }
+  try {
+    catalogue_.mark_submitted(marks);
+  } catch (const std::exception& e) {
+    log_error("slurm: recording Slurm job ", base, " failed (", e.what(), "); retrying");
+    std::lock_guard lock(mutex_);
+    unmarked_.insert(unmarked_.end(), marks.begin(), marks.end());
   }
   log_info("slurm: submitted ", ready.size(), " job(s) as ", base,
            ready.size() > 1 ? " (array)" : "", ", name ", name);
@@ -615,8 +705,30 @@ void SlurmExecutor::poll() {
                                        trim(line.substr(b + 1))};
   }
   for (const auto& [id, slurm_id] : watched) {
-    const auto it = listed.find(slurm_id);
-    on_state(id, it != listed.end() ? it->second : look_up_gone(id, slurm_id));
+    // One job's error (a catalogue write, an unreadable result) must not hold up the others:
+    // it is logged and that job is looked at again next round.
+    try {
+      const auto it = listed.find(slurm_id);
+      on_state(id, it != listed.end() ? it->second : look_up_gone(id, slurm_id));
+    } catch (const std::exception& e) {
+      log_error("slurm: job ", id, " (", slurm_id, "): ", e.what(), " (retrying next round)");
+    }
+  }
+}
+
+void SlurmExecutor::record_unmarked() {
+  std::vector<std::pair<std::string, std::string>> marks;
+  {
+    std::lock_guard lock(mutex_);
+    marks.swap(unmarked_);
+  }
+  if (marks.empty()) return;
+  try {
+    catalogue_.mark_submitted(marks);
+  } catch (...) {
+    std::lock_guard lock(mutex_);
+    unmarked_.insert(unmarked_.end(), marks.begin(), marks.end());
+    throw;
   }
 }
 
@@ -735,8 +847,19 @@ void SlurmExecutor::finish(const std::string& id, const SlurmOutcome& outcome,
     std::ofstream(fs::path(runner_.job_dir(id)) / "solve.log") << log_text;
   }
 
-  const bool ok = catalogue_.finish(id, record->attempt, state, why, error, result_path, progress,
-                                    stored ? &*stored : nullptr, now_us());
+  bool ok = false;
+  try {
+    ok = catalogue_.finish(id, record->attempt, state, why, error, result_path, progress,
+                           stored ? &*stored : nullptr, now_us());
+  } catch (const std::exception& e) {
+    // The outcome could not be recorded with its summary: a plain FAILED may still commit
+    // (if not, this throws and the poll loop tries again next round).
+    state = JobState::kFailed;
+    why = reason::kInternal;
+    error = "recording the outcome of Slurm job " + tracked.slurm_id + ": " + e.what();
+    log_error("job ", id, ": ", error);
+    ok = catalogue_.finish(id, record->attempt, state, why, error, "", progress, nullptr, now_us());
+  }
   if (ok) {
     log_info("job ", id, " ", to_string(state), " on Slurm (", tracked.slurm_id, ")",
              why.empty() ? "" : " " + why, error.empty() ? "" : ": " + error);

@@ -16,6 +16,7 @@
 #include <condition_variable>
 #include <map>
 #include <mutex>
+#include <set>
 #include <string>
 #include <thread>
 #include <vector>
@@ -93,7 +94,13 @@ class SlurmExecutor final : public Executor {
   void loop();
   void adopt_submitted_before_crash();
   void submit_pending();
+  void collect_batches(const std::vector<Pending>& batch, std::size_t& next,
+                       std::vector<JobRecord>& singles,
+                       std::map<std::string, std::vector<JobRecord>>& grids,
+                       std::set<std::string>& taken);
+  void submit_batch_safely(const std::vector<JobRecord>& jobs);
   void submit_batch(const std::vector<JobRecord>& jobs);
+  void record_unmarked();  // retries mark_submitted for what sbatch took but was not recorded
   void send_cancels();
   void poll();
   void on_state(const std::string& id, const Observed& observed);
@@ -111,8 +118,9 @@ class SlurmExecutor final : public Executor {
 
   mutable std::mutex mutex_;
   std::condition_variable wake_;
-  std::vector<Pending> pending_;         // QUEUED, not yet handed to Slurm
-  std::map<std::string, Tracked> jobs_;  // handed to Slurm, not finished
+  std::vector<Pending> pending_;                               // QUEUED, not yet handed to Slurm
+  std::map<std::string, Tracked> jobs_;                        // handed to Slurm, not finished
+  std::vector<std::pair<std::string, std::string>> unmarked_;  // on Slurm, id not committed
   std::size_t reserved_ = 0;
   bool started_ = false, stopping_ = false, nudged_ = false;
   bool adopted_ = false;  // the start-up crash-window check has run

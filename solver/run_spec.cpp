@@ -8,6 +8,7 @@
 #include <sstream>
 
 #include "gmsh_mesher.hpp"
+#include "mesh_file_path.hpp"
 
 namespace softshock {
 namespace {
@@ -130,6 +131,10 @@ void validate_spec(const v1::RunSpec& s, const SpecLimits& limits) {
       break;
     }
     case v1::Geometry::kMeshFile: {
+      if (!limits.mesh_root.empty()) {
+        (void)resolve_mesh_file(limits.mesh_root, g.mesh_file());  // the host's folder only
+        break;
+      }
       require(!g.mesh_file().empty(), "geometry.mesh_file", "must name a .msh file");
       std::error_code ec;
       require(std::filesystem::is_regular_file(g.mesh_file(), ec), "geometry.mesh_file",
@@ -211,13 +216,23 @@ Problem make_problem(const v1::RunSpec& s, const SpecLimits& limits) {
       p.origin = {0.0, 0.0};
       p.reference_radius_m = 0.5 * g.rounded_square().side();
       break;
-    case v1::Geometry::kMeshFile:
+    case v1::Geometry::kMeshFile: {
+      const std::string path = limits.mesh_root.empty()
+                                   ? g.mesh_file()
+                                   : resolve_mesh_file(limits.mesh_root, g.mesh_file());
       try {
-        p.mesh = read_gmsh_file(g.mesh_file());
+        p.mesh = read_gmsh_file(path);
       } catch (const std::exception& e) {
-        throw SpecError("geometry.mesh_file", e.what());
+        // Name the file as the spec does: a host's own folders stay out of the message.
+        std::string message = e.what();
+        for (auto at = message.find(path); at != std::string::npos && path != g.mesh_file();
+             at = message.find(path, at + g.mesh_file().size())) {
+          message.replace(at, path.size(), g.mesh_file());
+        }
+        throw SpecError("geometry.mesh_file", message);
       }
       break;
+    }
     case v1::Geometry::SHAPE_NOT_SET:
       throw SpecError("geometry", "one of disk, rounded_square or mesh_file is required");
   }
