@@ -111,6 +111,7 @@ Daemon::Daemon(DaemonConfig config) : impl_(std::make_unique<Impl>()) {
   }
   // Also here, not only in the loader: an embedding program must not expose an open daemon.
   if (auto problem = exposure_problem(config)) throw std::invalid_argument(*problem);
+  if (auto warning = transport_warning(config)) log_warning(*warning);
   fs::create_directories(config.data_dir);
   config.data_dir = fs::canonical(config.data_dir).string();
   fs::create_directories(fs::path(config.data_dir) / "jobs");

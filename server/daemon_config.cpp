@@ -431,6 +431,17 @@ bool is_loopback_listen_address(const std::string& listen) {
   return false;  // a host name, "" (all interfaces) or garbage
 }
 
+std::optional<std::string> transport_warning(const DaemonConfig& config) {
+  if (config.token_file.empty() || !config.tls_cert.empty() ||
+      is_loopback_listen_address(config.listen)) {
+    return std::nullopt;
+  }
+  return "serving " + config.listen +
+         " with a bearer token but without TLS: the token crosses the network in clear text. "
+         "Set tls-cert and tls-key, or put a TLS-terminating proxy in front and listen on "
+         "loopback";
+}
+
 std::optional<std::string> exposure_problem(const DaemonConfig& config) {
   if (!config.token_file.empty() || config.insecure_no_auth ||
       is_loopback_listen_address(config.listen)) {

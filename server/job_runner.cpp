@@ -9,6 +9,7 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <limits>
 #include <optional>
 
 #include "server/log.hpp"
@@ -45,6 +46,16 @@ double json_number(const google::protobuf::Struct& s, const std::string& key) {
   return it->second.number_value();
 }
 
+// A count of the summary JSON: converting NaN, a negative or an out-of-range double to an
+// integer type is undefined behaviour, so anything but a finite value in 0..2^53 reads as 0.
+template <typename Int>
+Int json_count(const google::protobuf::Struct& s, const std::string& key) {
+  const double v = json_number(s, key);
+  constexpr double kExact = 9007199254740992.0;  // 2^53: every integer below is exact
+  const double hi = std::min(kExact, static_cast<double>(std::numeric_limits<Int>::max()));
+  return std::isfinite(v) && v >= 0 && v <= hi ? static_cast<Int>(v) : Int{0};
+}
+
 }  // namespace
 
 v1::RunSpec parse_stored_spec(const std::string& json) {
@@ -69,9 +80,9 @@ RunSummary parse_summary_json(const std::string& json) {
   };
   r.status = text("status");
   r.error = text("error");
-  r.elements = static_cast<std::size_t>(json_number(s, "elements"));
-  r.nodes = static_cast<std::size_t>(json_number(s, "nodes"));
-  r.steps = static_cast<int64_t>(json_number(s, "steps"));
+  r.elements = json_count<std::size_t>(s, "elements");
+  r.nodes = json_count<std::size_t>(s, "nodes");
+  r.steps = json_count<int64_t>(s, "steps");
   r.wall_time_s = json_number(s, "wall_time_s");
   r.end_time_s = json_number(s, "end_time_s");
   if (const auto g = f.find("groups"); g != f.end()) {
@@ -88,7 +99,7 @@ RunSummary parse_summary_json(const std::string& json) {
   r.energy_after_pulse_J_per_m = json_number(s, "energy_after_pulse_J_per_m");
   r.max_abar_first_cycle = json_number(s, "max_abar_first_cycle");
   r.max_abar = json_number(s, "max_abar");
-  r.dominant_mode_end = static_cast<int>(json_number(s, "dominant_mode_end"));
+  r.dominant_mode_end = json_count<int>(s, "dominant_mode_end");
   r.shock_at_center_s = json_number(s, "shock_at_center_s");
   if (const auto rr = f.find("rim_reflections_s"); rr != f.end()) {
     for (const auto& v : rr->second.list_value().values()) {

@@ -30,6 +30,7 @@ class JobRunner {
   void run(const std::string& id, CancelToken& cancel);
 
   std::string job_dir(const std::string& id) const;
+  const std::string& data_dir() const { return config_.data_dir; }
   // DATA/meshes/: the only folder geometry.mesh_file is read from (the runner's limits carry
   // it as mesh_root).
   std::string meshes_dir() const;

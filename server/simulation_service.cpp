@@ -13,6 +13,7 @@
 #include <optional>
 #include <sstream>
 #include <thread>
+#include <tuple>
 
 #include "server/field_raster.hpp"
 #include "server/grid.hpp"
@@ -59,6 +60,14 @@ bool parse_id(const std::string& name, std::string* id, const std::string& colle
   }
   *id = std::move(s);
   return true;
+}
+
+// A Timestamp inside 0001-01-01..9999-12-31 with nanos in 0..999,999,999 (google.protobuf's
+// own rule): only those convert to microseconds without overflowing int64.
+bool valid_timestamp(const google::protobuf::Timestamp& t) {
+  return t.seconds() >= TimeUtil::kTimestampMinSeconds &&
+         t.seconds() <= TimeUtil::kTimestampMaxSeconds && t.nanos() >= 0 &&
+         t.nanos() <= 999'999'999;
 }
 
 int64_t timestamp_us(const google::protobuf::Timestamp& t) {
@@ -258,15 +267,28 @@ void SimulationService::fill_job(const JobRecord& r, v1::Job* job) const {
   progress->set_simulated_time(p.simulated_time_s);
   progress->set_steps(p.steps);
   progress->set_dt(p.dt_s);
-  job->set_error(r.error);
+  // The server's own folders stay private: result_path is relative to the data folder, and
+  // an error naming a file there says DATA/ instead.
+  job->set_error(without_data_dir(r.error, "DATA/"));
   job->set_reason(r.reason);
-  job->set_result_path(r.result_path);
+  job->set_result_path(without_data_dir(r.result_path, ""));
   job->set_attempt(r.attempt);
   job->set_request_id(r.request_id);
   job->set_spec_hash(r.spec_hash);
   job->set_grid_id(r.grid_id);
   job->set_grid_index(r.grid_index);
   job->set_reused_from(r.reused_from);
+}
+
+std::string SimulationService::without_data_dir(const std::string& text,
+                                                const std::string& replacement) const {
+  const std::string prefix = runner_.data_dir() + "/";
+  std::string out = text;
+  for (auto at = out.find(prefix); at != std::string::npos;
+       at = out.find(prefix, at + replacement.size())) {
+    out.replace(at, prefix.size(), replacement);
+  }
+  return out;
 }
 
 std::optional<JobRecord> SimulationService::wait_terminal(const std::string& id,
@@ -437,6 +459,13 @@ Status SimulationService::ListJobs(grpc::ServerContext* ctx, const v1::ListJobsR
 }
 
 Status SimulationService::list(const v1::ListJobsRequest& req, v1::ListJobsResponse* resp) {
+  for (const auto& [given, t, field] :
+       {std::tuple{req.has_created_after(), &req.created_after(), "created_after"},
+        std::tuple{req.has_created_before(), &req.created_before(), "created_before"}}) {
+    if (given && !valid_timestamp(*t)) {
+      return invalid(field, "must be a timestamp between years 1 and 9999 (nanos 0..999999999)");
+    }
+  }
   int page_size = 0;
   if (Status s = page_size_of(req.page_size(), &page_size); !s.ok()) return s;
   ListFilter filter;
@@ -816,7 +845,11 @@ Status SimulationService::field(grpc::ServerContext* ctx, const v1::GetFieldRequ
       y[i] = mesh.y[i] + disp[2 * i + 1];
     }
     RasterBox box;
-    values = rasterize(x, y, mesh.triangles, values, kind.components, kind.node, nx, ny, box);
+    try {
+      values = rasterize(x, y, mesh.triangles, values, kind.components, kind.node, nx, ny, box);
+    } catch (const std::length_error& e) {
+      return {StatusCode::RESOURCE_EXHAUSTED, e.what()};
+    }
     header->set_location("raster");
     header->set_nx(nx);
     header->set_ny(ny);

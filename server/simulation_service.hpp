@@ -87,6 +87,8 @@ class SimulationService final : public v1::SimulationService::Service {
   // The grid with its live counts, progress and derived state.
   void fill_grid(const GridRecord& record, v1::Grid* grid) const;
 
+  // `text` with every "DATA_DIR/" replaced (absolute server paths never leave the daemon).
+  std::string without_data_dir(const std::string& text, const std::string& replacement) const;
   // Job state with the live progress of a running job overlaid.
   void fill_job(const JobRecord& record, v1::Job* job) const;
   // Waits until the job is terminal (or gone) or the wait runs out; returns the last record.

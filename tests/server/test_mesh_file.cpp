@@ -45,9 +45,9 @@ std::string disk_msh(double r) {
   }
   std::ostringstream m;
   m.precision(17);
-  m << "$MeshFormat\n4.1 0 8\n$EndMeshFormat\n$Entities\n0 0 1 0\n1 " << -r << " " << -r
-    << " 0 " << r << " " << r << " 0 0 0\n$EndEntities\n$Nodes\n1 " << nodes.size() << " 1 "
-    << nodes.size() << "\n2 1 0 " << nodes.size() << "\n";
+  m << "$MeshFormat\n4.1 0 8\n$EndMeshFormat\n$Entities\n0 0 1 0\n1 " << -r << " " << -r << " 0 "
+    << r << " " << r << " 0 0 0\n$EndEntities\n$Nodes\n1 " << nodes.size() << " 1 " << nodes.size()
+    << "\n2 1 0 " << nodes.size() << "\n";
   for (std::size_t i = 1; i <= nodes.size(); ++i) m << i << "\n";
   for (const auto& [x, y] : nodes) m << x << " " << y << " 0\n";
   m << "$EndNodes\n$Elements\n1 " << tris.size() << " 1 " << tris.size() << "\n2 1 2 "
@@ -164,8 +164,9 @@ TEST_F(MeshFileTest, TheDaemonAnswersAbsentAndNotAllowedAlike) {
   ASSERT_EQ(absent.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
   EXPECT_EQ(absent.error_message().rfind("spec.geometry.mesh_file: ", 0), 0u)
       << absent.error_message();
-  for (const std::string& name : {std::string("/etc/passwd"), std::string("escape.msh"),
-                                 std::string("../catalogue.sqlite"), (dir_ / "outside.msh").string()}) {
+  for (const std::string& name :
+       {std::string("/etc/passwd"), std::string("escape.msh"), std::string("../catalogue.sqlite"),
+        (dir_ / "outside.msh").string()}) {
     const grpc::Status s = submit(name, &job);
     EXPECT_EQ(s.error_code(), grpc::StatusCode::INVALID_ARGUMENT) << name;
     EXPECT_EQ(s.error_message(), absent.error_message()) << name;

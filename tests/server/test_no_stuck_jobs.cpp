@@ -28,7 +28,8 @@ using namespace std::chrono_literals;
 class NoStuckJobs : public ::testing::Test {
  protected:
   void SetUp() override {
-    dir_ = fs::temp_directory_path() / ("softshock-stuck-" + std::to_string(std::random_device{}()));
+    dir_ =
+        fs::temp_directory_path() / ("softshock-stuck-" + std::to_string(std::random_device{}()));
     fs::create_directories(dir_ / "data" / "jobs");
     catalogue_ = std::make_unique<Catalogue>((dir_ / "data" / "catalogue.sqlite").string());
     RunnerConfig rc;
@@ -80,8 +81,9 @@ class NoStuckJobs : public ::testing::Test {
       fs::permissions(p, fs::perms::owner_all);
     };
     const std::string counter = (dir_ / "sbatch-count").string();
-    script("sbatch", "n=$(cat '" + counter + "' 2>/dev/null || echo 1000)\nn=$((n+1))\necho $n > '" +
-                         counter + "'\necho $n\n");
+    script("sbatch", "n=$(cat '" + counter +
+                         "' 2>/dev/null || echo 1000)\nn=$((n+1))\necho $n > '" + counter +
+                         "'\necho $n\n");
     script("squeue", "exit 0\n");
     script("scontrol", "echo \"JobId=$4 JobState=FAILED Reason=NonZeroExitCode\"\n");
     script("sacct", "exit 1\n");
