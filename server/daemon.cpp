@@ -217,6 +217,11 @@ void Daemon::start() {
   builder.AddListeningPort(d.config.listen, creds, &d.port);
   builder.RegisterService(d.service.get());
   builder.SetMaxReceiveMessageSize(d.config.max_receive_bytes);
+  // Bounded threads, so a flood of calls cannot grow the daemon without limit: a call that
+  // finds every thread busy is answered RESOURCE_EXHAUSTED by gRPC.
+  grpc::ResourceQuota quota("softshockd-rpcs");
+  quota.SetMaxThreads(std::max(4, d.config.max_concurrent_rpcs));
+  builder.SetResourceQuota(quota);
   d.server = builder.BuildAndStart();
   if (!d.server || d.port == 0) {
     throw std::runtime_error("cannot listen on " + d.config.listen);

@@ -26,6 +26,9 @@ struct DaemonConfig {
   int solver_threads = 1;
   int max_attempts = 3;
   int max_streams = 64;
+  // Calls served at once (gRPC resource quota: one thread each in the synchronous server);
+  // a call beyond gets RESOURCE_EXHAUSTED instead of another thread.
+  int max_concurrent_rpcs = 256;
   int max_receive_bytes = 4 << 20;
   double rpc_drain_s = 2.0;  // shutdown: in-flight RPCs get this long
   double job_stop_s = 6.0;   // shutdown: running jobs get this long to stop and requeue

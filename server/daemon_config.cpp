@@ -109,6 +109,12 @@ const std::vector<Setting>& settings() {
       {"tls-key", "FILE", "PEM private key",
        [](DaemonConfig& c, const std::string& v) { c.tls_key = v; },
        [](const DaemonConfig& c) { return show_path(c.tls_key); }},
+      {"max-concurrent-rpcs", "N",
+       "calls served at once; more get RESOURCE_EXHAUSTED (default 256)",
+       [](DaemonConfig& c, const std::string& v) {
+         c.max_concurrent_rpcs = static_cast<int>(parse_int(v, 4, 100'000));
+       },
+       [](const DaemonConfig& c) { return std::to_string(c.max_concurrent_rpcs); }},
       {"max-elements", "N", "largest mesh a job may use (default 2000000)",
        [](DaemonConfig& c, const std::string& v) {
          c.max_elements = static_cast<int>(parse_int(v, 1, 2'000'000'000));

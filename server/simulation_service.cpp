@@ -179,15 +179,6 @@ const std::map<std::string, FieldKind>& field_kinds() {
   return kinds;
 }
 
-template <typename T>
-std::vector<T> every_kth(const std::vector<T>& v, int k) {
-  if (k <= 1) return v;
-  std::vector<T> out;
-  out.reserve(v.size() / static_cast<std::size_t>(k) + 1);
-  for (std::size_t i = 0; i < v.size(); i += static_cast<std::size_t>(k)) out.push_back(v[i]);
-  return out;
-}
-
 // Runs a handler behind the token check; any exception becomes INTERNAL (and a log line) so a
 // bug in one request never takes the daemon down.
 template <typename F>
@@ -686,6 +677,7 @@ Status SimulationService::time_series(const v1::GetTimeSeriesRequest& req, v1::T
   if (Status s = result_file(id, &path); !s.ok()) return s;
   ResultReader reader(path);
   const auto known = reader.series_names();
+  // Each name at most once (a repeated name would be read and sent again), in request order.
   std::vector<std::string> names;
   for (const auto& n : req.names()) {
     if (std::find(known.begin(), known.end(), n) == known.end()) {
@@ -693,26 +685,35 @@ Status SimulationService::time_series(const v1::GetTimeSeriesRequest& req, v1::T
       for (const auto& k : known) list += (list.empty() ? "" : ", ") + k;
       return invalid("names", "unknown series '" + n + "' (known: " + list + ")");
     }
-    names.push_back(n);
+    if (n != "time" && std::find(names.begin(), names.end(), n) == names.end()) names.push_back(n);
   }
-  if (names.empty()) {
+  if (req.names().empty()) {
     for (const auto& k : known) {
       if (k != "time") names.push_back(k);
     }
   }
-  const auto time = every_kth(reader.series("time"), req.every());
-  if (time.size() * (names.size() + 1) > kMaxUnaryDoubles) {
-    return {StatusCode::RESOURCE_EXHAUSTED, "answer too large (" +
-                                                std::to_string(time.size() * (names.size() + 1)) +
-                                                " values); ask for fewer names or a larger every"};
+  // The size is known before anything is read, and only the kept samples are read.
+  const std::size_t k = req.every() <= 1 ? 1 : static_cast<std::size_t>(req.every());
+  const std::size_t samples = reader.dims("/timeseries/time").at(0);
+  const std::size_t kept = (samples + k - 1) / k;
+  if (kept * (names.size() + 1) > kMaxUnaryDoubles) {
+    return {StatusCode::RESOURCE_EXHAUSTED,
+            "answer too large (" + std::to_string(kept * (names.size() + 1)) + " values, at most " +
+                std::to_string(kMaxUnaryDoubles) + "); ask for fewer names or a larger every"};
   }
+  auto read = [&](const std::string& name) {
+    ResultReader::Slice slice;
+    slice.stride = k;
+    slice.rows = std::min(kept, (reader.dims("/timeseries/" + name).at(0) + k - 1) / k);
+    return reader.slice("/timeseries/" + name, slice);
+  };
+  const auto time = read("time");
   resp->mutable_time()->Add(time.begin(), time.end());
   for (const auto& n : names) {
-    if (n == "time") continue;
     auto* series = resp->add_series();
     series->set_name(n);
     series->set_units(series_units(n));
-    const auto values = every_kth(reader.series(n), req.every());
+    const auto values = read(n);
     series->mutable_values()->Add(values.begin(), values.end());
   }
   return Status::OK;
@@ -731,9 +732,9 @@ Status SimulationService::modes(const v1::GetModesRequest& req, v1::Modes* resp)
   if (req.mode_max() < 0) return invalid("mode_max", "must not be negative");
   if (Status s = result_file(id, &path); !s.ok()) return s;
   ResultReader reader(path);
-  std::size_t rows = 0, cols = 0;
-  const auto amplitudes = reader.mode_amplitudes(rows, cols);
-  const auto times = reader.mode_times();
+  const auto shape = reader.dims("/modes/amplitude");
+  const std::size_t rows = std::min(shape.at(0), reader.dims("/modes/time").at(0));
+  const std::size_t cols = shape.size() > 1 ? shape[1] : 1;
   if (cols == 0 || rows == 0) {
     resp->set_mode_min(req.mode_min());
     return Status::OK;
@@ -749,18 +750,25 @@ Status SimulationService::modes(const v1::GetModesRequest& req, v1::Modes* resp)
   }
   const int count = hi - lo + 1;
   const std::size_t k = req.every() <= 1 ? 1 : static_cast<std::size_t>(req.every());
-  const std::size_t kept = (std::min(rows, times.size()) + k - 1) / k;
+  const std::size_t kept = (rows + k - 1) / k;
   if (kept * static_cast<std::size_t>(count + 1) > kMaxUnaryDoubles) {
     return {StatusCode::RESOURCE_EXHAUSTED,
-            "answer too large; ask for fewer modes or a larger every"};
+            "answer too large (" + std::to_string(kept * static_cast<std::size_t>(count + 1)) +
+                " values, at most " + std::to_string(kMaxUnaryDoubles) +
+                "); ask for fewer modes or a larger every"};
   }
+  // Only the requested rows and modes are read (never the whole dataset).
+  ResultReader::Slice slice;
+  slice.stride = k;
+  slice.rows = kept;
+  const auto times = reader.slice("/modes/time", slice);
+  slice.col_first = static_cast<std::size_t>(lo);
+  slice.col_count = static_cast<std::size_t>(count);
+  const auto amplitudes = reader.slice("/modes/amplitude", slice);
   resp->set_mode_min(lo);
   resp->set_mode_count(count);
-  for (std::size_t r = 0; r < std::min(rows, times.size()); r += k) {
-    resp->add_time(times[r]);
-    const double* row = amplitudes.data() + r * cols;
-    resp->mutable_amplitude()->Add(row + lo, row + hi + 1);
-  }
+  resp->mutable_time()->Add(times.begin(), times.end());
+  resp->mutable_amplitude()->Add(amplitudes.begin(), amplitudes.end());
   return Status::OK;
 }
 

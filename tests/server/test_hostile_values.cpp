@@ -29,7 +29,8 @@ using namespace std::chrono_literals;
 class HostileValues : public ::testing::Test {
  protected:
   void SetUp() override {
-    dir_ = fs::temp_directory_path() / ("softshock-hostile-" + std::to_string(std::random_device{}()));
+    dir_ =
+        fs::temp_directory_path() / ("softshock-hostile-" + std::to_string(std::random_device{}()));
     fs::create_directories(dir_);
   }
   void TearDown() override { fs::remove_all(dir_); }
@@ -102,10 +103,12 @@ TEST_F(HostileValues, TokenFilesMustBeLongAndPrivate) {
   EXPECT_EQ(read_token_file(token_file(good + "\n", owner)), good);
   EXPECT_EQ(read_token_file(token_file(good, owner | fs::perms::group_read)), good)
       << "0640: the daemon's group may read it (Kubernetes fsGroup)";
-  const std::string short_token = error_of([&] { read_token_file(token_file("  short\n", owner)); });
+  const std::string short_token =
+      error_of([&] { read_token_file(token_file("  short\n", owner)); });
   EXPECT_NE(short_token.find("at least 32"), std::string::npos) << short_token;
   for (auto others : {fs::perms::others_read, fs::perms::others_write}) {
-    const std::string exposed = error_of([&] { read_token_file(token_file(good, owner | others)); });
+    const std::string exposed =
+        error_of([&] { read_token_file(token_file(good, owner | others)); });
     EXPECT_NE(exposed.find("accessible to other users"), std::string::npos) << exposed;
   }
   fs::create_directories(dir_ / "folder");
