@@ -132,6 +132,9 @@ Daemon::Daemon(DaemonConfig config) : impl_(std::make_unique<Impl>()) {
   rc.limits.max_end_time_s = config.max_end_time_s;
   rc.solver_threads = config.solver_threads;
   rc.max_wall_time_s = config.max_wall_time_s;
+  rc.admission.max_steps = config.max_steps;
+  rc.admission.max_memory_bytes = config.max_job_memory_bytes;
+  rc.admission.max_disk_bytes = config.max_job_disk_bytes;
   d.runner = std::make_unique<JobRunner>(rc, *d.catalogue, d.events);
   d.recover();
 
@@ -174,6 +177,7 @@ Daemon::Daemon(DaemonConfig config) : impl_(std::make_unique<Impl>()) {
 
   ServiceConfig sc;
   sc.limits = rc.limits;
+  sc.admission = rc.admission;
   sc.max_streams = config.max_streams;
   d.service = std::make_unique<SimulationService>(sc, *d.catalogue, *d.scheduler, d.events,
                                                   *d.runner, *d.auth);

@@ -22,7 +22,11 @@ struct DaemonConfig {
   std::string tls_cert, tls_key;  // both or neither
   int max_elements = 2'000'000;
   double max_end_time_s = 1e-5;
-  double max_wall_time_s = 0;  // 0 = none
+  double max_wall_time_s = 21600;  // 6 h; 0 = none
+  // Admission by estimate (server/admission.hpp): steps, peak memory and result size per job.
+  double max_steps = 10'000'000;
+  double max_job_memory_bytes = 4.0 * (1ull << 30);
+  double max_job_disk_bytes = 16.0 * (1ull << 30);
   int solver_threads = 1;
   int max_attempts = 3;
   int max_streams = 64;

@@ -307,6 +307,11 @@ void JobRunner::run_job(const std::string& id, CancelToken& cancel) {
     // limits.mesh_root confines geometry.mesh_file to DATA/meshes/ (solver/mesh_file_path.hpp).
     spec = normalize_spec(parse_stored_spec(job->spec_json), config_.limits);
     problem = make_problem(spec, config_.limits);
+    // Again with the real mesh (a mesh_file is first known here) and today's limits.
+    check_admission(spec,
+                    estimate_resources(spec, static_cast<double>(problem.mesh.element_count()),
+                                       mesh_area(problem.mesh)),
+                    config_.admission);
     options = make_options(spec);
     options.threads = std::max(1, config_.solver_threads);
   } catch (const SpecError& e) {

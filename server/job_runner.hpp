@@ -5,6 +5,7 @@
 
 #include <string>
 
+#include "server/admission.hpp"
 #include "server/catalogue.hpp"
 #include "server/job_events.hpp"
 #include "server/scheduler.hpp"
@@ -18,6 +19,7 @@ struct RunnerConfig {
   SpecLimits limits;
   int solver_threads = 1;            // element-loop threads per job (overrides run.threads)
   double max_wall_time_s = 0;        // 0 = no limit
+  AdmissionLimits admission;         // checked again at start, with the real mesh
   double progress_interval_s = 0.1;  // how often live progress is published
 };
 

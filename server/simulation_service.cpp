@@ -297,6 +297,19 @@ std::optional<JobRecord> SimulationService::wait_terminal(const std::string& id,
   }
 }
 
+// "pbar = 0.5, tbar_pulse = 0.1": point i of a grid (row-major, last axis fastest).
+static std::string point_coordinates(const GridPlan& plan, std::size_t index) {
+  std::string out;
+  for (std::size_t a = plan.axes.size(); a-- > 0;) {
+    const auto n = static_cast<std::size_t>(plan.shape[a]);
+    char value[32];
+    std::snprintf(value, sizeof value, "%.6g", plan.axes[a].values(static_cast<int>(index % n)));
+    out = plan.axes[a].name() + " = " + value + (out.empty() ? "" : ", ") + out;
+    index /= n;
+  }
+  return out;
+}
+
 // --- SubmitJob -----------------------------------------------------------------------------
 
 Status SimulationService::SubmitJob(grpc::ServerContext* ctx, const v1::SubmitJobRequest* req,
@@ -381,6 +394,7 @@ Status SimulationService::submit(grpc::ServerContext* ctx, const v1::SubmitJobRe
   CanonicalSpec spec;
   try {
     spec = canonical_spec(req.spec(), config_.limits);
+    check_spec_admission(spec.spec, config_.admission);
   } catch (const SpecError& e) {
     return spec_invalid(ctx, "spec", e);
   }
@@ -978,6 +992,14 @@ Status SimulationService::submit_grid(grpc::ServerContext* ctx, const v1::Submit
   }
   try {
     plan = expand_grid(base.spec, req.axes(), config_.limits);
+    for (std::size_t i = 0; i < plan.points.size(); ++i) {
+      try {
+        check_spec_admission(plan.points[i].spec, config_.admission);
+      } catch (const SpecError& e) {
+        throw SpecError(
+            "axes", "the point " + point_coordinates(plan, i) + " is refused: spec." + e.what());
+      }
+    }
   } catch (const SpecError& e) {
     return spec_invalid(ctx, "", e);
   }

@@ -8,6 +8,7 @@
 #include <random>
 #include <string>
 
+#include "server/admission.hpp"
 #include "server/auth.hpp"
 #include "server/catalogue.hpp"
 #include "server/executor.hpp"
@@ -21,6 +22,7 @@ namespace softshock::server {
 
 struct ServiceConfig {
   SpecLimits limits;
+  AdmissionLimits admission;          // estimated steps, memory, disk per job
   int max_streams = 64;               // concurrent WatchJob + GetField streams
   double watch_min_interval_s = 0.2;  // at most ~5 WatchJob updates per second
   double cancel_wait_s = 5.0;         // CancelJob/DeleteJob wait this long for a running job

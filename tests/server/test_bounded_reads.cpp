@@ -22,7 +22,8 @@ using namespace std::chrono_literals;
 class BoundedReads : public ::testing::Test {
  protected:
   void SetUp() override {
-    dir_ = fs::temp_directory_path() / ("softshock-bounded-" + std::to_string(std::random_device{}()));
+    dir_ =
+        fs::temp_directory_path() / ("softshock-bounded-" + std::to_string(std::random_device{}()));
   }
   void TearDown() override {
     stub_.reset();
