@@ -149,6 +149,9 @@ Daemon::Daemon(DaemonConfig config) : impl_(std::make_unique<Impl>()) {
     slurm.sbatch_args = config.slurm_sbatch_args;
     slurm.solver = config.slurm_solver;
     slurm.solver_threads = config.solver_threads;
+    slurm.max_elements = config.max_elements;
+    slurm.max_end_time_s = config.max_end_time_s;
+    slurm.max_wall_time_s = config.max_wall_time_s;
     slurm.array_throttle = config.workers;
     slurm.poll_s = config.slurm_poll_s;
     slurm.max_queued = config.max_queued;

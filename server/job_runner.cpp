@@ -2,6 +2,7 @@
 
 #include <google/protobuf/struct.pb.h>
 #include <google/protobuf/util/json_util.h>
+#include <sys/statvfs.h>
 
 #include <algorithm>
 #include <cctype>
@@ -22,6 +23,12 @@ namespace softshock::server {
 namespace fs = std::filesystem;
 
 namespace {
+
+std::string megabytes(double bytes) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.0f MB", bytes / 1e6);
+  return buf;
+}
 
 // Seconds in messages: "8e-09 s", not std::to_string's "0.000000 s".
 std::string seconds(double s) {
@@ -184,6 +191,13 @@ JobRunner::JobRunner(RunnerConfig config, Catalogue& catalogue, JobEvents& event
   config_.limits.mesh_root = meshes_dir();  // never a client-chosen path elsewhere
 }
 
+double JobRunner::free_bytes() const {
+  if (config_.free_bytes) return config_.free_bytes(config_.data_dir);
+  struct statvfs st {};
+  if (::statvfs(config_.data_dir.c_str(), &st) != 0) return INFINITY;  // unknown: do not block
+  return static_cast<double>(st.f_bavail) * static_cast<double>(st.f_frsize);
+}
+
 std::string JobRunner::job_dir(const std::string& id) const {
   return (fs::path(config_.data_dir) / "jobs" / id).string();
 }
@@ -303,15 +317,15 @@ void JobRunner::run_job(const std::string& id, CancelToken& cancel) {
   v1::RunSpec spec;
   Problem problem;
   SolverOptions options;
+  ResourceEstimate estimate;
   try {
     // limits.mesh_root confines geometry.mesh_file to DATA/meshes/ (solver/mesh_file_path.hpp).
     spec = normalize_spec(parse_stored_spec(job->spec_json), config_.limits);
     problem = make_problem(spec, config_.limits);
     // Again with the real mesh (a mesh_file is first known here) and today's limits.
-    check_admission(spec,
-                    estimate_resources(spec, static_cast<double>(problem.mesh.element_count()),
-                                       mesh_area(problem.mesh)),
-                    config_.admission);
+    estimate = estimate_resources(spec, static_cast<double>(problem.mesh.element_count()),
+                                  mesh_area(problem.mesh));
+    check_admission(spec, estimate, config_.admission);
     options = make_options(spec);
     options.threads = std::max(1, config_.solver_threads);
   } catch (const SpecError& e) {
@@ -328,7 +342,7 @@ void JobRunner::run_job(const std::string& id, CancelToken& cancel) {
         requeue(reason::kShutdown);
         return;
       case StopReason::kWallTime:
-        finish(JobState::kFailed, reason::kWallTimeLimit,
+        finish(JobState::kFailed, reason::kWallTimeExceeded,
                "wall time limit of " + seconds(config_.max_wall_time_s) + " reached while meshing",
                "", nullptr);
         return;
@@ -340,6 +354,14 @@ void JobRunner::run_job(const std::string& id, CancelToken& cancel) {
   }
 
   const std::string dir = job_dir(id);
+  if (const double free = free_bytes(); free < estimate.disk_bytes + config_.min_free_bytes) {
+    finish(JobState::kFailed, reason::kDiskFull,
+           "the data folder has " + megabytes(free) + " free; this job's result needs about " +
+               megabytes(estimate.disk_bytes) + " above a reserve of " +
+               megabytes(config_.min_free_bytes),
+           "", nullptr);
+    return;
+  }
   std::unique_ptr<ResultWriter> writer;
   try {
     std::error_code ec;
@@ -373,8 +395,20 @@ void JobRunner::run_job(const std::string& id, CancelToken& cancel) {
       cancel.request(StopReason::kWallTime);
     }
   };
+  // A frame is about as large as the estimate's share per frame; it is not written when it
+  // would eat into the reserve (the catalogue must still be able to commit the outcome).
+  const double frame_bytes =
+      problem.mesh.element_count() * 56.0 + 64.0 * static_cast<double>(problem.mesh.x.size());
+  bool disk_full = false;
   control.on_frame = [&](const FieldFrame& frame) {
     if (!io_error.empty()) return;
+    if (const double free = free_bytes(); free < frame_bytes + config_.min_free_bytes) {
+      disk_full = true;
+      io_error = "the data folder has " + megabytes(free) + " free, below the reserve of " +
+                 megabytes(config_.min_free_bytes) + " plus a frame";
+      cancel.request(StopReason::kInternal);
+      return;
+    }
     try {
       writer->write_frame(frame);
     } catch (const std::exception& e) {
@@ -414,13 +448,13 @@ void JobRunner::run_job(const std::string& id, CancelToken& cancel) {
       switch (cancel.reason()) {
         case StopReason::kWallTime:
           state = JobState::kFailed;
-          why = reason::kWallTimeLimit;
+          why = reason::kWallTimeExceeded;
           error = "wall time limit of " + seconds(config_.max_wall_time_s) +
                   " reached at simulated time " + seconds(last_progress.simulated_time_s);
           break;
         case StopReason::kInternal:
           state = JobState::kFailed;
-          why = reason::kInternal;
+          why = disk_full ? reason::kDiskFull : reason::kInternal;
           error = "writing a field frame: " + io_error;
           break;
         default:
@@ -437,7 +471,7 @@ void JobRunner::run_job(const std::string& id, CancelToken& cancel) {
   try {
     const RunSummary summary = summarize(problem, result);
     stored = make_stored_summary(summary, result.history);
-    if (state != JobState::kFailed || why != reason::kInternal) {
+    if (state != JobState::kFailed || (why != reason::kInternal && why != reason::kDiskFull)) {
       writer->finish(result.history, summary, state == JobState::kSucceeded, error);
     }
   } catch (const std::exception& e) {

@@ -3,6 +3,7 @@
 // SUCCEEDED only after ResultWriter::finish() returned, i.e. once result.h5 is durable.
 #pragma once
 
+#include <functional>
 #include <string>
 
 #include "server/admission.hpp"
@@ -17,9 +18,15 @@ namespace softshock::server {
 struct RunnerConfig {
   std::string data_dir;  // absolute
   SpecLimits limits;
-  int solver_threads = 1;            // element-loop threads per job (overrides run.threads)
-  double max_wall_time_s = 0;        // 0 = no limit
-  AdmissionLimits admission;         // checked again at start, with the real mesh
+  int solver_threads = 1;      // element-loop threads per job (overrides run.threads)
+  double max_wall_time_s = 0;  // 0 = no limit
+  AdmissionLimits admission;   // checked again at start, with the real mesh
+  // Free space the data folder keeps for the catalogue and other jobs: a job does not start
+  // unless its estimated result fits above it, and stops (DISK_FULL) before a frame would
+  // eat into it.
+  double min_free_bytes = 256.0 * (1 << 20);
+  // Free bytes on the filesystem holding a path; empty = statvfs (tests substitute one).
+  std::function<double(const std::string&)> free_bytes;
   double progress_interval_s = 0.1;  // how often live progress is published
 };
 
@@ -48,6 +55,7 @@ class JobRunner {
 
  private:
   void run_job(const std::string& id, CancelToken& cancel);
+  double free_bytes() const;
   void fail_running(const std::string& id, const std::string& error);
 
   RunnerConfig config_;

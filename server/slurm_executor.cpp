@@ -10,6 +10,8 @@
 
 #include <algorithm>
 #include <cerrno>
+#include <charconv>
+#include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
@@ -106,6 +108,13 @@ CommandResult run_command(const std::vector<std::string>& argv) {
   return r;
 }
 
+// A seconds figure for a command line, exact (shortest round-trip form).
+std::string end_time_text(double s) {
+  char buf[32];
+  const auto [end, ec] = std::to_chars(buf, buf + sizeof buf, s);
+  return ec == std::errc() ? std::string(buf, end) : std::to_string(s);
+}
+
 std::string trim(const std::string& s) {
   const auto b = s.find_first_not_of(" \t\r\n");
   if (b == std::string::npos) return "";
@@ -198,6 +207,12 @@ SlurmOutcome map_slurm_state(const std::string& slurm_state) {
   static const std::set<std::string> failed = {"FAILED",    "TIMEOUT",   "OUT_OF_MEMORY",
                                                "NODE_FAIL", "BOOT_FAIL", "DEADLINE",
                                                "PREEMPTED", "REVOKED",   "SPECIAL_EXIT"};
+  if (s == "TIMEOUT") {  // sbatch --time carries the daemon's wall limit
+    o.kind = SlurmOutcome::Kind::kTerminal;
+    o.state = JobState::kFailed;
+    o.reason = reason::kWallTimeExceeded;
+    return o;
+  }
   if (waiting.count(s)) {
     o.kind = SlurmOutcome::Kind::kWaiting;
   } else if (running.count(s)) {
@@ -582,7 +597,8 @@ void SlurmExecutor::submit_batch(const std::vector<JobRecord>& jobs) {
          << "id=${ids[${SLURM_ARRAY_TASK_ID:-0}]}\n"
          << "dir=" << sh_quote(fs::path(config_.shared_dir) / "jobs") << "/$id\n"
          << "exec " << sh_quote(config_.solver) << " --spec \"$dir/spec.json\" --out \"$dir\""
-         << " --threads " << config_.solver_threads
+         << " --threads " << config_.solver_threads << " --max-elements " << config_.max_elements
+         << " --max-end-time " << end_time_text(config_.max_end_time_s)
          << " >\"$dir/summary.json\" 2>\"$dir/solve.log\"\n";
   const fs::path script_path = batches / (name + ".sh");
   write_text(script_path, script.str());
@@ -593,7 +609,12 @@ void SlurmExecutor::submit_batch(const std::vector<JobRecord>& jobs) {
                  (batches / (ready.size() > 1 ? "%x-%A_%a.out" : "%x-%j.out")).string());
   if (!config_.partition.empty()) argv.push_back("--partition=" + config_.partition);
   if (!config_.account.empty()) argv.push_back("--account=" + config_.account);
-  if (!config_.time_limit.empty()) argv.push_back("--time=" + config_.time_limit);
+  if (!config_.time_limit.empty()) {
+    argv.push_back("--time=" + config_.time_limit);
+  } else if (config_.max_wall_time_s > 0) {
+    argv.push_back("--time=" +
+                   std::to_string(static_cast<long long>(std::ceil(config_.max_wall_time_s / 60))));
+  }
   if (ready.size() > 1) {
     std::string array = "--array=0-" + std::to_string(ready.size() - 1);
     if (config_.array_throttle > 0) array += "%" + std::to_string(config_.array_throttle);

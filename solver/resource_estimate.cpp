@@ -52,12 +52,13 @@ ResourceEstimate estimate_resources(const v1::RunSpec& spec, double elements, do
   e.steps = r.end_time() / e.dt_s;
   const double samples = std::floor(r.end_time() / r.history_interval()) + 1;
   const double history_bytes = samples * (kHistoryColumns + r.modes() + 1) * 8;
-  const double frames = r.output_interval() > 0 ? std::floor(r.end_time() / r.output_interval()) + 1 : 0;
+  const double frames =
+      r.output_interval() > 0 ? std::floor(r.end_time() / r.output_interval()) + 1 : 0;
   // The history is kept while running and copied once when the file is finished.
   e.memory_bytes = kFixedBytes + kBytesPerElement * elements + 2 * history_bytes +
                    kFrameBytesPerElement * elements;
-  e.disk_bytes = frames * kFrameBytesPerElement * elements + history_bytes +
-                 kMeshBytesPerElement * elements;
+  e.disk_bytes =
+      frames * kFrameBytesPerElement * elements + history_bytes + kMeshBytesPerElement * elements;
   return e;
 }
 

@@ -1,4 +1,4 @@
-// softshock-solve --spec SPEC.json --out DIR [--threads N]
+// softshock-solve --spec SPEC.json --out DIR [--threads N] [--max-elements N] [--max-end-time S]
 // Runs one spec, writes DIR/result.h5 + DIR/result.xdmf, prints the JSON summary on stdout.
 // Exit codes: 0 success, 2 invalid spec or usage, 1 run failure (partial file kept, marked
 // incomplete).
@@ -6,8 +6,10 @@
 
 #include <atomic>
 #include <chrono>
+#include <cmath>
 #include <csignal>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <iostream>
 #include <string>
@@ -28,6 +30,7 @@ int usage(const char* msg) {
   if (msg) std::fprintf(stderr, "softshock-solve: %s\n", msg);
   std::fprintf(stderr,
                "usage: softshock-solve --spec SPEC.json --out DIR [--threads N] [--quiet]\n"
+               "                       [--max-elements N] [--max-end-time SECONDS]\n"
                "  SPEC.json  run spec (protobuf JSON of softshock.v1.RunSpec; {} = baseline)\n"
                "  DIR        output directory: result.h5, result.xdmf\n"
                "exit codes: 0 success, 2 invalid spec or usage, 1 run failure\n");
@@ -73,6 +76,7 @@ int main(int argc, char** argv) {
   std::string spec_path, out_dir;
   int threads = 0;
   bool quiet = false;
+  softshock::SpecLimits limits;  // a host's (softshockd on Slurm) limits, else the defaults
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     auto value = [&]() -> const char* { return i + 1 < argc ? argv[++i] : nullptr; };
@@ -93,6 +97,21 @@ int main(int argc, char** argv) {
         return usage("--threads: not a number");
       }
       if (threads < 1) return usage("--threads: must be >= 1");
+    } else if (a == "--max-elements" || a == "--max-end-time") {
+      const char* v = value();
+      if (!v) return usage((a + " needs a number").c_str());
+      char* end = nullptr;
+      const double x = std::strtod(v, &end);
+      if (end == v || *end != '\0' || !(x > 0) || !std::isfinite(x)) {
+        return usage((a + ": expects a number > 0").c_str());
+      }
+      if (a == "--max-end-time") {
+        limits.max_end_time_s = x;
+      } else if (x > 2e9) {
+        return usage("--max-elements: at most 2000000000");
+      } else {
+        limits.max_elements = static_cast<int>(x);
+      }
     } else if (a == "--quiet") {
       quiet = true;
     } else if (a == "--help" || a == "-h") {
@@ -109,8 +128,8 @@ int main(int argc, char** argv) {
   try {
     spec = softshock::read_spec_file(spec_path);
     if (threads > 0) spec.mutable_run()->set_threads(threads);
-    spec = softshock::normalize_spec(spec);
-    problem = softshock::make_problem(spec);
+    spec = softshock::normalize_spec(spec, limits);
+    problem = softshock::make_problem(spec, limits);
   } catch (const softshock::SpecError& e) {
     std::fprintf(stderr, "softshock-solve: invalid spec: %s\n", e.what());
     return 2;

@@ -13,11 +13,11 @@ import h5py
 SOLVE = os.environ["SOFTSHOCK_SOLVE"]
 
 
-def solve(spec, out):
+def solve(spec, out, *extra):
     with tempfile.NamedTemporaryFile("w", suffix=".json", delete=False) as f:
         json.dump(spec, f)
     try:
-        return subprocess.run([SOLVE, "--spec", f.name, "--out", out], capture_output=True,
+        return subprocess.run([SOLVE, "--spec", f.name, "--out", out, *extra], capture_output=True,
                               text=True, timeout=300)
     finally:
         os.unlink(f.name)
@@ -65,6 +65,13 @@ class SoftshockSolve(unittest.TestCase):
         r = solve({"run": {"cfl": 1.5}}, self.out)
         self.assertEqual(r.returncode, 2)
         self.assertIn("run.cfl", r.stderr)
+        # A host's limits (softshockd passes its own to jobs on Slurm).
+        r = solve({}, self.out, "--max-elements", "100")
+        self.assertEqual(r.returncode, 2)
+        self.assertIn("geometry.target_elements: must be between 20 and 100", r.stderr)
+        r = solve({"run": {"end_time": 2e-6}}, self.out, "--max-end-time", "1e-6")
+        self.assertEqual(r.returncode, 2)
+        self.assertIn("run.end_time", r.stderr)
 
     def test_inverting_run_exits_1_and_keeps_a_partial_file_marked_incomplete(self):
         # 100 kappa on a coarse mesh with no viscosity at CFL 0.95 crushes the rim at once.

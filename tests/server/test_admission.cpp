@@ -38,9 +38,8 @@ TEST(ResourceEstimate, StableStepIsAtMostTheSolversAndNotFarBelow) {
   RunControl control;
   const RunResult result = run_simulation(problem, make_options(spec), control);
   ASSERT_EQ(result.status, RunStatus::kCompleted) << result.error;
-  const double estimate =
-      estimate_stable_dt(spec, static_cast<double>(problem.mesh.element_count()),
-                         mesh_area(problem.mesh));
+  const double estimate = estimate_stable_dt(
+      spec, static_cast<double>(problem.mesh.element_count()), mesh_area(problem.mesh));
   // Steps are never underestimated, and overestimated by less than 4x (measured: 1.3x).
   EXPECT_LE(estimate, result.min_dt_s);
   EXPECT_GT(estimate, result.min_dt_s / 4) << "estimate " << estimate << " vs " << result.min_dt_s;
@@ -64,7 +63,8 @@ TEST(ResourceEstimate, ScalesAsExpected) {
 class AdmissionService : public ::testing::Test {
  protected:
   void SetUp() override {
-    dir_ = fs::temp_directory_path() / ("softshock-admission-" + std::to_string(std::random_device{}()));
+    dir_ = fs::temp_directory_path() /
+           ("softshock-admission-" + std::to_string(std::random_device{}()));
     DaemonConfig c;
     c.data_dir = (dir_ / "data").string();
     c.listen = "127.0.0.1:0";
@@ -111,11 +111,12 @@ class AdmissionService : public ::testing::Test {
 TEST_F(AdmissionService, RefusesEndlessHungryAndHugeSpecsNamingFigureLimitAndFields) {
   std::string field;
   // The issue's endless job: ~1e10 steps.
-  grpc::Status s = submit(R"({"geometry":{"disk":{"radius":1e-12}},"run":{"end_time":1e-8}})", &field);
+  grpc::Status s =
+      submit(R"({"geometry":{"disk":{"radius":1e-12}},"run":{"end_time":1e-8}})", &field);
   EXPECT_EQ(s.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
   EXPECT_EQ(field, "spec.run.end_time");
-  for (const char* part : {"time steps", "max-steps = 1e+07", "geometry.target_elements",
-                           "load.pressure"}) {
+  for (const char* part :
+       {"time steps", "max-steps = 1e+07", "geometry.target_elements", "load.pressure"}) {
     EXPECT_NE(s.error_message().find(part), std::string::npos) << part << ": " << s.error_message();
   }
   // 1e6 history samples x 1025 values: ~16 GiB.
@@ -131,8 +132,8 @@ TEST_F(AdmissionService, RefusesEndlessHungryAndHugeSpecsNamingFigureLimitAndFie
              &field);
   EXPECT_EQ(s.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
   EXPECT_EQ(field, "spec.run.output_interval");
-  EXPECT_NE(s.error_message().find("max-job-disk = 16 GiB"), std::string::npos) << field
-      << s.error_message();
+  EXPECT_NE(s.error_message().find("max-job-disk = 16 GiB"), std::string::npos)
+      << field << s.error_message();
   // The baseline passes.
   EXPECT_TRUE(submit("{}").ok());
 }
@@ -156,19 +157,18 @@ TEST_F(AdmissionService, EveryGridPointIsChecked) {
       << s.error_message();
 }
 
-TEST(AdmissionRunner, LimitsLoweredSinceSubmissionFailTheJobAtStart) {
+// One job run by a JobRunner with `rc` (data_dir filled in); returns its final record.
+JobRecord run_one(RunnerConfig rc, const std::string& spec_json) {
   const fs::path dir =
-      fs::temp_directory_path() / ("softshock-admission-" + std::to_string(std::random_device{}()));
+      fs::temp_directory_path() / ("softshock-limits-" + std::to_string(std::random_device{}()));
   fs::create_directories(dir / "jobs");
+  JobRecord out;
   {
     Catalogue catalogue((dir / "catalogue.sqlite").string());
     JobEvents events;
-    RunnerConfig rc;
     rc.data_dir = dir.string();
-    rc.admission.max_steps = 1;
     JobRunner runner(rc, catalogue, events);
-    const CanonicalSpec spec = canonical_spec(
-        parse_spec_json(R"({"geometry":{"target_elements":200},"run":{"end_time":5e-9}})"), {});
+    const CanonicalSpec spec = canonical_spec(parse_spec_json(spec_json), {});
     NewJob job;
     job.id = "j";
     job.spec_json = spec.json;
@@ -177,12 +177,52 @@ TEST(AdmissionRunner, LimitsLoweredSinceSubmissionFailTheJobAtStart) {
     catalogue.insert(job);
     CancelToken token;
     runner.run("j", token);
-    const auto done = catalogue.get("j");
-    EXPECT_EQ(done->state, JobState::kFailed);
-    EXPECT_EQ(done->reason, reason::kInvalidSpec);
-    EXPECT_NE(done->error.find("max-steps = 1:"), std::string::npos) << done->error;
+    out = catalogue.get("j").value();
   }
   fs::remove_all(dir);
+  return out;
+}
+
+constexpr const char* kTiny = R"({"geometry":{"target_elements":200},"run":{"end_time":5e-9}})";
+
+TEST(JobLimits, LimitsLoweredSinceSubmissionFailTheJobAtStart) {
+  RunnerConfig rc;
+  rc.admission.max_steps = 1;
+  const JobRecord done = run_one(rc, kTiny);
+  EXPECT_EQ(done.state, JobState::kFailed);
+  EXPECT_EQ(done.reason, reason::kInvalidSpec);
+  EXPECT_NE(done.error.find("max-steps = 1:"), std::string::npos) << done.error;
+}
+
+TEST(JobLimits, ARunPastItsWallLimitFailsWallTimeExceeded) {
+  RunnerConfig rc;
+  rc.max_wall_time_s = 0.05;  // checked with each progress publication (every 0.1 s)
+  const JobRecord done = run_one(
+      rc, R"({"geometry":{"target_elements":4000},"run":{"end_time":1e-5,"output_interval":0}})");
+  EXPECT_EQ(done.state, JobState::kFailed);
+  EXPECT_EQ(done.reason, "WALL_TIME_EXCEEDED");
+  EXPECT_NE(done.error.find("wall time limit"), std::string::npos) << done.error;
+}
+
+TEST(JobLimits, AJobDoesNotStartWithoutRoomForItsResult) {
+  RunnerConfig rc;
+  rc.free_bytes = [](const std::string&) { return 100e6; };  // below the 256 MiB reserve
+  const JobRecord done = run_one(rc, kTiny);
+  EXPECT_EQ(done.state, JobState::kFailed);
+  EXPECT_EQ(done.reason, "DISK_FULL");
+  EXPECT_NE(done.error.find("100 MB free"), std::string::npos) << done.error;
+}
+
+TEST(JobLimits, AJobStopsBeforeAFrameWouldEatIntoTheReserve) {
+  RunnerConfig rc;
+  int calls = 0;
+  // Room at start, none once frames come (another job filled the disk meanwhile).
+  rc.free_bytes = [&calls](const std::string&) { return ++calls == 1 ? 1e12 : 1e6; };
+  const JobRecord done = run_one(rc, kTiny);
+  EXPECT_EQ(done.state, JobState::kFailed) << "recorded: the catalogue stays writable";
+  EXPECT_EQ(done.reason, "DISK_FULL");
+  EXPECT_NE(done.error.find("below the reserve"), std::string::npos) << done.error;
+  EXPECT_EQ(calls, 2) << "no frame was written after the first refusal";
 }
 
 TEST(AdmissionSettings, LimitsComeFromTheSettingsTable) {

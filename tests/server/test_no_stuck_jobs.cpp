@@ -10,6 +10,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <random>
 #include <thread>
 
@@ -81,7 +82,8 @@ class NoStuckJobs : public ::testing::Test {
       fs::permissions(p, fs::perms::owner_all);
     };
     const std::string counter = (dir_ / "sbatch-count").string();
-    script("sbatch", "n=$(cat '" + counter +
+    const std::string args = (dir_ / "sbatch-args").string();
+    script("sbatch", "echo \"$@\" >> '" + args + "'\nn=$(cat '" + counter +
                          "' 2>/dev/null || echo 1000)\nn=$((n+1))\necho $n > '" + counter +
                          "'\necho $n\n");
     script("squeue", "exit 0\n");
@@ -92,8 +94,7 @@ class NoStuckJobs : public ::testing::Test {
     ::setenv("PATH", (bin.string() + ":" + saved_path_).c_str(), 1);
   }
 
-  std::unique_ptr<SlurmExecutor> slurm_executor() {
-    SlurmConfig config;
+  std::unique_ptr<SlurmExecutor> slurm_executor(SlurmConfig config = {}) {
     config.shared_dir = (dir_ / "slurm").string();
     config.poll_s = 0.05;
     return std::make_unique<SlurmExecutor>(config, *catalogue_, *runner_, events_);
@@ -187,6 +188,27 @@ TEST_F(NoStuckJobs, SlurmPollIsolatesAJobWhoseOutcomeCannotBeRecorded) {
   EXPECT_EQ(a.state, JobState::kFailed);
   EXPECT_EQ(a.reason, "SLURM_FAILED");
   slurm->shutdown(0ms);
+}
+
+// Not about stuck jobs, but the same stand-in Slurm: the daemon's limits reach the cluster.
+TEST_F(NoStuckJobs, SlurmJobsGetTheDaemonsLimits) {
+  fake_slurm();
+  insert("eeee");
+  SlurmConfig config;
+  config.max_wall_time_s = 21600;
+  config.max_elements = 5000;
+  config.max_end_time_s = 2e-6;
+  auto slurm = slurm_executor(config);
+  for (const auto& q : catalogue_->queued_jobs()) slurm->enqueue(q.id, q.priority, q.seq, false);
+  slurm->start();
+  wait_terminal("eeee");
+  slurm->shutdown(0ms);
+  std::ifstream args(dir_ / "sbatch-args");
+  const std::string sbatch((std::istreambuf_iterator<char>(args)), {});
+  EXPECT_NE(sbatch.find("--time=360 "), std::string::npos) << sbatch;
+  std::ifstream script(dir_ / "slurm" / "batches" / "softshock-eeee.sh");
+  const std::string batch((std::istreambuf_iterator<char>(script)), {});
+  EXPECT_NE(batch.find("--max-elements 5000 --max-end-time 2e-06"), std::string::npos) << batch;
 }
 
 TEST_F(NoStuckJobs, SlurmBatchThatCannotBePreparedFailsAloneAndOthersGoOut) {
