@@ -33,6 +33,9 @@ namespace {
 
 constexpr std::size_t kMaxArrayTasks = 1000;  // Slurm's default MaxArraySize is 1001
 constexpr const char* kNamePrefix = "softshock-";
+// The Slurm id recorded for a job whose Slurm job was purged before we learnt its id: no Slurm
+// command knows it, so its files decide its outcome.
+constexpr const char* kPurgedPrefix = "purged-";
 
 struct CommandResult {
   int status = -1;  // exit status; -1 = could not run or killed
@@ -413,6 +416,16 @@ void SlurmExecutor::adopt_submitted_before_crash() {
       found.emplace_back(ids[k], ids.size() == 1 ? base : base + "_" + std::to_string(k));
     }
   }
+  // Not listed at all, but its batch ran (solve.log is removed before every submission and
+  // written only by the batch): Slurm took it and has since purged it. Resubmitting would run
+  // it twice and delete the first run's result; it is adopted instead, and its files decide.
+  std::set<std::string> adopted;
+  for (const auto& [id, slurm_id] : found) adopted.insert(id);
+  for (const auto& id : waiting) {
+    std::error_code ec;
+    if (adopted.count(id) || !fs::exists(fs::path(job_dir(id)) / "solve.log", ec)) continue;
+    found.emplace_back(id, kPurgedPrefix + id);
+  }
   if (!found.empty()) {
     catalogue_.mark_submitted(found);
     std::lock_guard lock(mutex_);
@@ -677,19 +690,21 @@ void SlurmExecutor::send_cancels() {
 SlurmExecutor::Observed SlurmExecutor::look_up_gone(const std::string& id,
                                                     const std::string& slurm_id) {
   Observed o;
-  if (const auto r = run_command({"scontrol", "-o", "show", "job", slurm_id}); r.status == 0) {
-    std::istringstream words(r.out);
-    for (std::string w; words >> w;) {
-      if (w.rfind("JobState=", 0) == 0) o.state = w.substr(9);
-      if (w.rfind("Reason=", 0) == 0) o.detail = w.substr(7);
+  if (slurm_id.rfind(kPurgedPrefix, 0) != 0) {  // a real Slurm id: ask Slurm first
+    if (const auto r = run_command({"scontrol", "-o", "show", "job", slurm_id}); r.status == 0) {
+      std::istringstream words(r.out);
+      for (std::string w; words >> w;) {
+        if (w.rfind("JobState=", 0) == 0) o.state = w.substr(9);
+        if (w.rfind("Reason=", 0) == 0) o.detail = w.substr(7);
+      }
+      if (!o.state.empty()) return o;
     }
-    if (!o.state.empty()) return o;
-  }
-  // With accounting (slurmdbd), sacct knows jobs long gone from slurmctld's memory.
-  if (const auto r = run_command({"sacct", "-n", "-P", "-X", "-j", slurm_id, "-o", "State"});
-      r.status == 0 && !first_line(r.out).empty()) {
-    o.state = first_line(r.out);
-    return o;
+    // With accounting (slurmdbd), sacct knows jobs long gone from slurmctld's memory.
+    if (const auto r = run_command({"sacct", "-n", "-P", "-X", "-j", slurm_id, "-o", "State"});
+        r.status == 0 && !first_line(r.out).empty()) {
+      o.state = first_line(r.out);
+      return o;
+    }
   }
   // Neither knows it (gone longer than MinJobAge and no accounting): the files tell.
   bool complete = false;

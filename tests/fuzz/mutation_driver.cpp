@@ -30,12 +30,38 @@ using Input = std::string;  // byte 0: the path (see fuzz_target.cpp), then the 
 
 const std::vector<std::string>& tokens() {
   static const std::vector<std::string> t = {
-      "1e308",  "-1e308",     "1e-320", "-0",   "0",          "NaN",        "\"NaN\"",
-      "\"Infinity\"", "\"-Infinity\"", "2147483647", "2147483648", "-2147483649",
-      "9007199254740993", "18446744073709551616", "1e400", "null", "true", "[]", "{}",
-      "\"\"",   "\"../../etc/passwd\"", "\"/etc/passwd\"", "\"a.msh\\u0000x\"", "1000000",
-      "0.5",    "1e-12",   "-1",   "\"SQUARE\"", "\"GAUSSIAN\"", "99",
-      "{\"disk\":{\"radius\":1e-12}}", "{\"mesh_file\":\"x.msh\"}",
+      "1e308",
+      "-1e308",
+      "1e-320",
+      "-0",
+      "0",
+      "NaN",
+      "\"NaN\"",
+      "\"Infinity\"",
+      "\"-Infinity\"",
+      "2147483647",
+      "2147483648",
+      "-2147483649",
+      "9007199254740993",
+      "18446744073709551616",
+      "1e400",
+      "null",
+      "true",
+      "[]",
+      "{}",
+      "\"\"",
+      "\"../../etc/passwd\"",
+      "\"/etc/passwd\"",
+      "\"a.msh\\u0000x\"",
+      "1000000",
+      "0.5",
+      "1e-12",
+      "-1",
+      "\"SQUARE\"",
+      "\"GAUSSIAN\"",
+      "99",
+      "{\"disk\":{\"radius\":1e-12}}",
+      "{\"mesh_file\":\"x.msh\"}",
       "{\"name\":\"pbar\",\"linspace\":{\"start\":0,\"stop\":1e308,\"num\":3}}",
       "{\"name\":\"geometry.target_elements\",\"values\":[20,2e9]}"};
   return t;
@@ -79,13 +105,15 @@ class Mutator {
           break;
         case 3:  // delete a range
           if (n > 2) {
-            const std::size_t at = 1 + below(n - 1), len = 1 + below(std::min<std::size_t>(16, n - at));
+            const std::size_t at = 1 + below(n - 1),
+                              len = 1 + below(std::min<std::size_t>(16, n - at));
             out.erase(at, len);
           }
           break;
         case 4:  // duplicate a range
           if (n > 2) {
-            const std::size_t at = 1 + below(n - 1), len = 1 + below(std::min<std::size_t>(64, n - at));
+            const std::size_t at = 1 + below(n - 1),
+                              len = 1 + below(std::min<std::size_t>(64, n - at));
             out.insert(at, out.substr(at, len));
           }
           break;
@@ -129,14 +157,20 @@ class Mutator {
     for (; end < s.size(); ++end) {
       const char c = s[end];
       if (in_string) {
-        if (c == '\\') ++end;
-        else if (c == '"') in_string = false;
+        if (c == '\\')
+          ++end;
+        else if (c == '"')
+          in_string = false;
         continue;
       }
-      if (c == '"') in_string = true;
-      else if (c == '{' || c == '[') ++depth;
-      else if ((c == '}' || c == ']') && depth-- == 0) break;
-      else if (c == ',' && depth == 0) break;
+      if (c == '"')
+        in_string = true;
+      else if (c == '{' || c == '[')
+        ++depth;
+      else if ((c == '}' || c == ']') && depth-- == 0)
+        break;
+      else if (c == ',' && depth == 0)
+        break;
     }
     s.replace(at, end - at, tokens()[below(tokens().size())]);
   }

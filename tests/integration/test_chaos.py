@@ -73,7 +73,8 @@ class ChaosTest(DaemonTestCase):
         corrupt, states = [], {}
         for job_id in sorted(acknowledged):
             job = c.get(job_id)
-            states[state_name(job)] = states.get(state_name(job), 0) + 1
+            key = state_name(job) + (f"/{job.reason}" if job.reason else "")
+            states[key] = states.get(key, 0) + 1
             if state_name(job) != "SUCCEEDED":
                 continue
             summary = c.summary(job_id)

@@ -211,6 +211,24 @@ TEST_F(NoStuckJobs, SlurmJobsGetTheDaemonsLimits) {
   EXPECT_NE(batch.find("--max-elements 5000 --max-end-time 2e-06"), std::string::npos) << batch;
 }
 
+// The daemon died between sbatch and recording the Slurm id, and Slurm has purged the job
+// since: its batch ran (solve.log), so it is not sent a second time; its files decide.
+TEST_F(NoStuckJobs, SlurmJobPurgedBeforeItsIdWasRecordedIsNotResubmitted) {
+  fake_slurm();
+  insert("ffff");
+  fs::create_directories(dir_ / "slurm" / "jobs" / "ffff");
+  std::ofstream(dir_ / "slurm" / "jobs" / "ffff" / "solve.log")
+      << "softshock-solve: run failed: element inversion\n";
+  auto slurm = slurm_executor();
+  for (const auto& q : catalogue_->queued_jobs()) slurm->enqueue(q.id, q.priority, q.seq, false);
+  slurm->start();
+  const JobRecord f = wait_terminal("ffff");
+  slurm->shutdown(0ms);
+  EXPECT_EQ(f.state, JobState::kFailed);
+  EXPECT_NE(f.error.find("element inversion"), std::string::npos) << f.error;
+  EXPECT_FALSE(fs::exists(dir_ / "sbatch-args")) << "sbatch was called: a second run";
+}
+
 TEST_F(NoStuckJobs, SlurmBatchThatCannotBePreparedFailsAloneAndOthersGoOut) {
   fake_slurm();
   insert("cccc");  // submitted first (lower seq)
