@@ -1,10 +1,13 @@
 #include "server/auth.hpp"
 
+#include <fcntl.h>
 #include <grpcpp/server_context.h>
 #include <grpcpp/support/status.h>
+#include <sys/stat.h>
+#include <unistd.h>
 
-#include <fstream>
-#include <sstream>
+#include <cerrno>
+#include <cstdio>
 #include <stdexcept>
 
 namespace softshock::server {
@@ -40,15 +43,40 @@ grpc::Status Authenticator::check(const grpc::ServerContext& context) const {
 }
 
 std::string read_token_file(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw std::runtime_error("cannot read token file " + path);
-  std::ostringstream s;
-  s << in.rdbuf();
-  std::string token = s.str();
+  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0) throw std::runtime_error("cannot read token file " + path);
+  struct stat st {};
+  const bool stat_ok = ::fstat(fd, &st) == 0;
+  std::string token;
+  char buf[4096];
+  for (ssize_t n; (n = ::read(fd, buf, sizeof buf)) != 0;) {
+    if (n < 0 && errno == EINTR) continue;
+    if (n < 0 || token.size() > kMaxTokenFileBytes) {
+      ::close(fd);
+      throw std::runtime_error("cannot read token file " + path + " (or it is over 64 KiB)");
+    }
+    token.append(buf, static_cast<std::size_t>(n));
+  }
+  ::close(fd);
+  // Checked on the file actually read (fstat), so a swap between check and read cannot help.
+  if (!stat_ok || !S_ISREG(st.st_mode)) {
+    throw std::runtime_error("token file " + path + " is not a regular file");
+  }
+  if ((st.st_mode & (S_IROTH | S_IWOTH)) != 0) {
+    char mode[8];
+    std::snprintf(mode, sizeof mode, "%04o", static_cast<unsigned>(st.st_mode & 07777));
+    throw std::runtime_error("token file " + path + " is accessible to other users (mode " + mode +
+                             "); chmod o-rwx it (0600, or 0640 with the daemon's group)");
+  }
   const char* ws = " \t\r\n\v\f";
   const auto first = token.find_first_not_of(ws);
   if (first == std::string::npos) throw std::runtime_error("token file " + path + " is empty");
   token = token.substr(first, token.find_last_not_of(ws) - first + 1);
+  if (token.size() < kMinTokenBytes) {
+    throw std::runtime_error("token file " + path + " holds " + std::to_string(token.size()) +
+                             " bytes; a token needs at least " + std::to_string(kMinTokenBytes) +
+                             " (e.g. head -c 32 /dev/urandom | base64)");
+  }
   return token;
 }
 

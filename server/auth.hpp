@@ -5,6 +5,7 @@
 // stay unauthenticated so container probes and tooling work without the secret.
 #pragma once
 
+#include <cstddef>
 #include <string>
 
 namespace grpc {
@@ -26,8 +27,13 @@ class Authenticator {
   std::string token_;
 };
 
-// Reads a token file; surrounding whitespace (a trailing newline) is trimmed. Throws
-// std::runtime_error if it cannot be read or is empty.
+// A guessable token is no protection: at least 32 bytes (e.g. 32 random bytes in base64).
+inline constexpr std::size_t kMinTokenBytes = 32;
+inline constexpr std::size_t kMaxTokenFileBytes = 64 * 1024;
+
+// Reads the daemon's token file; surrounding whitespace (a trailing newline) is trimmed. Throws
+// std::runtime_error if it cannot be read, is not a regular file, is readable or writable by
+// other users (mode o+r or o+w), or holds fewer than kMinTokenBytes after trimming.
 std::string read_token_file(const std::string& path);
 
 // Compares without an early exit, so timing does not reveal how much of a guess matched.

@@ -4,6 +4,7 @@
 
 #include <chrono>
 #include <cstring>
+#include <type_traits>
 #include <unordered_map>
 
 namespace softshock::server {
@@ -281,6 +282,7 @@ class SqliteConnection {
     }
     int64_t i64(int col) const { return sqlite3_column_int64(s_, col); }
     bool is_null(int col) const { return sqlite3_column_type(s_, col) == SQLITE_NULL; }
+    bool is_text(int col) const { return sqlite3_column_type(s_, col) == SQLITE_TEXT; }
     double dbl(int col) const { return sqlite3_column_double(s_, col); }
     std::string text(int col) const {
       const auto* p = sqlite3_column_text(s_, col);
@@ -451,30 +453,44 @@ JobRecord read_job(const Connection::Stmt& s) {
   return j;
 }
 
+// A summary figure. NaN cannot be stored in the NOT NULL REAL columns of job_summaries (SQLite
+// binds NaN as NULL), so it is stored as the text 'NaN', which REAL affinity leaves as text;
+// any text reads back as NaN. +-Inf are ordinary REAL values.
+void bind_figure(Connection::Stmt& s, int i, double v) {
+  if (std::isnan(v)) {
+    s.bind(i, std::string("NaN"));
+  } else {
+    s.bind(i, v);
+  }
+}
+double read_figure(const Connection::Stmt& s, int col) {
+  return s.is_text(col) || s.is_null(col) ? NAN : s.dbl(col);
+}
+
 // summary_columns() starting at column `c`.
 RunSummary read_summary(const Connection::Stmt& s, int c) {
   RunSummary r;
   r.elements = static_cast<std::size_t>(s.i64(c + 0));
   r.nodes = static_cast<std::size_t>(s.i64(c + 1));
   r.steps = s.i64(c + 2);
-  r.wall_time_s = s.dbl(c + 3);
-  r.end_time_s = s.dbl(c + 4);
-  r.groups.pbar = s.dbl(c + 5);
-  r.groups.tbar_pulse = s.dbl(c + 6);
-  r.groups.mubar = s.dbl(c + 7);
-  r.groups.gamma = s.dbl(c + 8);
-  r.groups.c1 = s.dbl(c + 9);
-  r.groups.c2 = s.dbl(c + 10);
-  r.groups.time_scale_s = s.dbl(c + 11);
-  r.energy_injected_J_per_m = s.dbl(c + 12);
-  r.energy_after_pulse_J_per_m = s.dbl(c + 13);
-  r.max_abar_first_cycle = s.dbl(c + 14);
-  r.max_abar = s.dbl(c + 15);
+  r.wall_time_s = read_figure(s, c + 3);
+  r.end_time_s = read_figure(s, c + 4);
+  r.groups.pbar = read_figure(s, c + 5);
+  r.groups.tbar_pulse = read_figure(s, c + 6);
+  r.groups.mubar = read_figure(s, c + 7);
+  r.groups.gamma = read_figure(s, c + 8);
+  r.groups.c1 = read_figure(s, c + 9);
+  r.groups.c2 = read_figure(s, c + 10);
+  r.groups.time_scale_s = read_figure(s, c + 11);
+  r.energy_injected_J_per_m = read_figure(s, c + 12);
+  r.energy_after_pulse_J_per_m = read_figure(s, c + 13);
+  r.max_abar_first_cycle = read_figure(s, c + 14);
+  r.max_abar = read_figure(s, c + 15);
   r.dominant_mode_end = static_cast<int>(s.i64(c + 16));
-  r.shock_at_center_s = s.dbl(c + 17);
+  r.shock_at_center_s = read_figure(s, c + 17);
   r.rim_reflections_s = s.doubles(c + 18);
-  r.min_dt_s = s.dbl(c + 19);
-  r.max_dt_s = s.dbl(c + 20);
+  r.min_dt_s = read_figure(s, c + 19);
+  r.max_dt_s = read_figure(s, c + 20);
   r.status = s.text(c + 21);
   r.error = s.text(c + 22);
   r.kernel_time_s = s.dbl(c + 23);
@@ -529,15 +545,28 @@ std::optional<JobRecord> get_by_request_id(Connection& c, const std::string& req
   return get_job_by(c, "request_id", request_id);
 }
 
+// The summary's query figures as numbers: the 'NaN' text of bind_figure() becomes NULL (not
+// known) in the nullable jobs columns, so it never compares as text in a filter.
+std::string query_figures() {
+  std::string out;
+  for (const char* c : {"pbar", "tbar_pulse", "mubar", "gamma", "c1", "c2", "max_abar_first_cycle",
+                        "max_abar", "energy_injected", "energy_after_pulse", "dominant_mode_end",
+                        "shock_at_center", "wall_time", "elements", "steps"}) {
+    out += (out.empty() ? "" : ", ") + std::string("CASE WHEN typeof(") + c +
+           ") IN ('real', 'integer') THEN " + c + " END";
+  }
+  return out;
+}
+
 // Copies a job's groups and summary figures from its summary row onto its jobs row (the
 // columns QueryJobs filters on); no-op without a summary.
 void refresh_query_columns(Connection& c, const std::string& id) {
   auto s = c.prepare(
       "UPDATE jobs SET (pbar, tbar_pulse, mubar, gamma, c1, c2, max_abar_first_cycle, max_abar, "
       "energy_injected, energy_after_pulse, dominant_mode_end, shock_at_center, wall_time, "
-      "elements, steps) = (SELECT pbar, tbar_pulse, mubar, gamma, c1, c2, max_abar_first_cycle, "
-      "max_abar, energy_injected, energy_after_pulse, dominant_mode_end, shock_at_center, "
-      "wall_time, elements, steps FROM job_summaries WHERE job_id = ?1) WHERE id = ?1 AND "
+      "elements, steps) = (SELECT " +
+      query_figures() +
+      " FROM job_summaries WHERE job_id = ?1) WHERE id = ?1 AND "
       "EXISTS (SELECT 1 FROM job_summaries WHERE job_id = ?1)");
   s.bind(1, id);
   s.run();
@@ -828,8 +857,11 @@ bool Catalogue::finish(const std::string& id, int attempt, JobState terminal,
         "progress_fraction = ?, progress_time = ?, progress_steps = ?, progress_dt = ? "
         "WHERE id = ? AND state = ? AND attempt = ?");
     s.bind(1, static_cast<int>(terminal)).bind(2, now).bind(3, reason).bind(4, error);
-    s.bind(5, result_path).bind(6, p.fraction).bind(7, p.simulated_time_s).bind(8, p.steps);
-    s.bind(9, p.dt_s).bind(10, id).bind(11, static_cast<int>(JobState::kRunning));
+    // Progress columns are NOT NULL and only informative: a non-finite figure reads as 0.
+    auto figure = [](double v) { return std::isfinite(v) ? v : 0.0; };
+    s.bind(5, result_path).bind(6, figure(p.fraction)).bind(7, figure(p.simulated_time_s));
+    s.bind(8, p.steps).bind(9, figure(p.dt_s)).bind(10, id);
+    s.bind(11, static_cast<int>(JobState::kRunning));
     s.bind(12, attempt);
     s.run();
   }
@@ -849,7 +881,13 @@ bool Catalogue::finish(const std::string& id, int attempt, JobState terminal,
         "?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)");
     // Positional binds in column order (one statement each: clear sequencing).
     int i = 0;
-    auto put = [&](auto v) { s.bind(++i, v); };
+    auto put = [&](auto v) {
+      if constexpr (std::is_same_v<decltype(v), double>) {
+        bind_figure(s, ++i, v);
+      } else {
+        s.bind(++i, v);
+      }
+    };
     auto put_blob = [&](const std::vector<double>& v) { s.bind_blob(++i, v); };
     put(id);
     put(static_cast<int64_t>(r.elements));

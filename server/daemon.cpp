@@ -119,6 +119,7 @@ Daemon::Daemon(DaemonConfig config) : impl_(std::make_unique<Impl>()) {
   }
   // Also here, not only in the loader: an embedding program must not expose an open daemon.
   if (auto problem = exposure_problem(config)) throw std::invalid_argument(*problem);
+  if (auto warning = transport_warning(config)) log_warning(*warning);
   fs::create_directories(config.data_dir);
   config.data_dir = fs::canonical(config.data_dir).string();
   fs::create_directories(fs::path(config.data_dir) / "jobs");
@@ -140,6 +141,9 @@ Daemon::Daemon(DaemonConfig config) : impl_(std::make_unique<Impl>()) {
   rc.solver_threads = config.solver_threads;
   rc.max_wall_time_s = config.max_wall_time_s;
   rc.mesh_cache_bytes = static_cast<std::uint64_t>(config.mesh_cache_bytes);
+  rc.admission.max_steps = config.max_steps;
+  rc.admission.max_memory_bytes = config.max_job_memory_bytes;
+  rc.admission.max_disk_bytes = config.max_job_disk_bytes;
   d.runner = std::make_unique<JobRunner>(rc, *d.catalogue, d.events);
   d.recover();
 
@@ -154,6 +158,9 @@ Daemon::Daemon(DaemonConfig config) : impl_(std::make_unique<Impl>()) {
     slurm.sbatch_args = config.slurm_sbatch_args;
     slurm.solver = config.slurm_solver;
     slurm.solver_threads = config.solver_threads;
+    slurm.max_elements = config.max_elements;
+    slurm.max_end_time_s = config.max_end_time_s;
+    slurm.max_wall_time_s = config.max_wall_time_s;
     slurm.array_throttle = config.workers;
     slurm.poll_s = config.slurm_poll_s;
     slurm.max_queued = config.max_queued;
@@ -182,6 +189,7 @@ Daemon::Daemon(DaemonConfig config) : impl_(std::make_unique<Impl>()) {
 
   ServiceConfig sc;
   sc.limits = rc.limits;
+  sc.admission = rc.admission;
   sc.max_streams = config.max_streams;
   d.meshes = std::make_unique<MeshStore>(d.runner->meshes_dir(), kMaxMeshUploadBytes,
                                          rc.limits.max_elements);
@@ -232,6 +240,11 @@ void Daemon::start() {
   builder.RegisterService(d.service.get());
   builder.RegisterService(d.mesh_service.get());
   builder.SetMaxReceiveMessageSize(d.config.max_receive_bytes);
+  // Bounded threads, so a flood of calls cannot grow the daemon without limit: a call that
+  // finds every thread busy is answered RESOURCE_EXHAUSTED by gRPC.
+  grpc::ResourceQuota quota("softshockd-rpcs");
+  quota.SetMaxThreads(std::max(4, d.config.max_concurrent_rpcs));
+  builder.SetResourceQuota(quota);
   d.server = builder.BuildAndStart();
   if (!d.server || d.port == 0) {
     throw std::runtime_error("cannot listen on " + d.config.listen);

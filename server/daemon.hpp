@@ -22,11 +22,18 @@ struct DaemonConfig {
   std::string tls_cert, tls_key;  // both or neither
   int max_elements = 2'000'000;
   double max_end_time_s = 1e-5;
-  double max_wall_time_s = 0;  // 0 = none
+  double max_wall_time_s = 21600;  // 6 h; 0 = none
+  // Admission by estimate (server/admission.hpp): steps, peak memory and result size per job.
+  double max_steps = 10'000'000;
+  double max_job_memory_bytes = 4.0 * (1ull << 30);
+  double max_job_disk_bytes = 16.0 * (1ull << 30);
   int solver_threads = 1;
   long long mesh_cache_bytes = 1LL << 30;  // DATA/cache/meshes, LRU by bytes; 0 = no cache
   int max_attempts = 3;
   int max_streams = 64;
+  // Calls served at once (gRPC resource quota: one thread each in the synchronous server);
+  // a call beyond gets RESOURCE_EXHAUSTED instead of another thread.
+  int max_concurrent_rpcs = 256;
   int max_receive_bytes = 4 << 20;
   double rpc_drain_s = 2.0;  // shutdown: in-flight RPCs get this long
   double job_stop_s = 6.0;   // shutdown: running jobs get this long to stop and requeue

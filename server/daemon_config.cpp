@@ -37,6 +37,49 @@ double parse_seconds(const std::string& v) {
   return x;
 }
 
+std::string show_number(double x);
+
+// Bytes: an integer with an optional binary suffix K, M, G or T (KiB, MiB, ...; "B" optional).
+double parse_bytes(const std::string& v) {
+  std::string digits = v, suffix;
+  while (!digits.empty() && std::isalpha(static_cast<unsigned char>(digits.back()))) {
+    suffix.insert(suffix.begin(), digits.back());
+    digits.pop_back();
+  }
+  if (suffix.size() > 1 && (suffix.back() == 'B' || suffix.back() == 'b')) suffix.pop_back();
+  if (suffix == "iB" || suffix == "i") suffix.clear();
+  if (suffix.size() == 2 && suffix[1] == 'i') suffix.pop_back();
+  double scale = 1;
+  if (suffix == "K" || suffix == "k") {
+    scale = 1024.0;
+  } else if (suffix == "M") {
+    scale = 1024.0 * 1024;
+  } else if (suffix == "G") {
+    scale = 1024.0 * 1024 * 1024;
+  } else if (suffix == "T") {
+    scale = 1024.0 * 1024 * 1024 * 1024;
+  } else if (!suffix.empty() && suffix != "B") {
+    digits.clear();  // an unknown unit
+  }
+  long long x = 0;
+  const char* end = digits.data() + digits.size();
+  const auto [ptr, ec] = std::from_chars(digits.data(), end, x);
+  if (digits.empty() || ec != std::errc() || ptr != end || x < 1) {
+    throw std::invalid_argument("expects a size in bytes >= 1, optionally with K, M, G or T");
+  }
+  return static_cast<double>(x) * scale;
+}
+
+std::string show_bytes(double b) {
+  const char* units[] = {"", "K", "M", "G", "T"};
+  int u = 0;
+  while (u < 4 && b >= 1024 && std::fmod(b, 1024) == 0) {
+    b /= 1024;
+    ++u;
+  }
+  return show_number(b) + units[u];
+}
+
 bool parse_bool(const std::string& v) {
   std::string s = v;
   std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return std::tolower(c); });
@@ -109,6 +152,12 @@ const std::vector<Setting>& settings() {
       {"tls-key", "FILE", "PEM private key",
        [](DaemonConfig& c, const std::string& v) { c.tls_key = v; },
        [](const DaemonConfig& c) { return show_path(c.tls_key); }},
+      {"max-concurrent-rpcs", "N",
+       "calls served at once; more get RESOURCE_EXHAUSTED (default 256)",
+       [](DaemonConfig& c, const std::string& v) {
+         c.max_concurrent_rpcs = static_cast<int>(parse_int(v, 4, 100'000));
+       },
+       [](const DaemonConfig& c) { return std::to_string(c.max_concurrent_rpcs); }},
       {"max-elements", "N", "largest mesh a job may use (default 2000000)",
        [](DaemonConfig& c, const std::string& v) {
          c.max_elements = static_cast<int>(parse_int(v, 1, 2'000'000'000));
@@ -117,7 +166,18 @@ const std::vector<Setting>& settings() {
       {"max-end-time", "SECONDS", "longest simulated end time (default 1e-5)",
        [](DaemonConfig& c, const std::string& v) { c.max_end_time_s = parse_seconds(v); },
        [](const DaemonConfig& c) { return show_number(c.max_end_time_s); }},
-      {"max-wall-time", "SECONDS", "wall-clock limit per job, 0 = none (default 0)",
+      {"max-steps", "N", "refuse jobs estimated to need more time steps (default 10000000)",
+       [](DaemonConfig& c, const std::string& v) {
+         c.max_steps = static_cast<double>(parse_int(v, 1, 1'000'000'000'000));
+       },
+       [](const DaemonConfig& c) { return show_number(c.max_steps); }},
+      {"max-job-memory", "BYTES", "refuse jobs estimated to need more memory (default 4G)",
+       [](DaemonConfig& c, const std::string& v) { c.max_job_memory_bytes = parse_bytes(v); },
+       [](const DaemonConfig& c) { return show_bytes(c.max_job_memory_bytes); }},
+      {"max-job-disk", "BYTES", "refuse jobs estimated to write a larger result (default 16G)",
+       [](DaemonConfig& c, const std::string& v) { c.max_job_disk_bytes = parse_bytes(v); },
+       [](const DaemonConfig& c) { return show_bytes(c.max_job_disk_bytes); }},
+      {"max-wall-time", "SECONDS", "wall-clock limit per job, 0 = none (default 21600 = 6 h)",
        [](DaemonConfig& c, const std::string& v) { c.max_wall_time_s = parse_seconds(v); },
        [](const DaemonConfig& c) { return show_number(c.max_wall_time_s); }},
       {"solver-threads", "N", "element-loop threads per job (default 1)",
@@ -436,6 +496,17 @@ bool is_loopback_listen_address(const std::string& listen) {
     return IN6_IS_ADDR_LOOPBACK(&v6) != 0;
   }
   return false;  // a host name, "" (all interfaces) or garbage
+}
+
+std::optional<std::string> transport_warning(const DaemonConfig& config) {
+  if (config.token_file.empty() || !config.tls_cert.empty() ||
+      is_loopback_listen_address(config.listen)) {
+    return std::nullopt;
+  }
+  return "serving " + config.listen +
+         " with a bearer token but without TLS: the token crosses the network in clear text. "
+         "Set tls-cert and tls-key, or put a TLS-terminating proxy in front and listen on "
+         "loopback";
 }
 
 std::optional<std::string> exposure_problem(const DaemonConfig& config) {

@@ -57,6 +57,10 @@ std::string describe_daemon_config(const LoadedConfig& loaded);
 // port could otherwise run work and delete results.
 std::optional<std::string> exposure_problem(const DaemonConfig& config);
 
+// A warning for the start-up log, or nothing: a bearer token served without TLS on a
+// non-loopback address travels in clear text, readable by anyone on the path.
+std::optional<std::string> transport_warning(const DaemonConfig& config);
+
 // True for 127.0.0.0/8, ::1, "localhost" and unix sockets; false for 0.0.0.0, [::], host names
 // and anything unparsable (refusing is the safe side).
 bool is_loopback_listen_address(const std::string& listen);

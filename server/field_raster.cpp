@@ -4,6 +4,7 @@
 #include <cmath>
 #include <limits>
 #include <stdexcept>
+#include <string>
 
 namespace softshock::server {
 
@@ -24,10 +25,20 @@ std::vector<double> rasterize(const std::vector<double>& x, const std::vector<do
     return out;
   }
 
-  box.x_min = *std::min_element(x.begin(), x.end());
-  box.x_max = *std::max_element(x.begin(), x.end());
-  box.y_min = *std::min_element(y.begin(), y.end());
-  box.y_max = *std::max_element(y.begin(), y.end());
+  // A diverged run can leave non-finite coordinates in a frame: such nodes (and the triangles
+  // that use them) are left out, so the box and the bucket indices stay finite.
+  auto finite_node = [&](int32_t n) { return std::isfinite(x[n]) && std::isfinite(y[n]); };
+  box = {};
+  bool any = false;
+  for (std::size_t n = 0; n < x.size(); ++n) {
+    if (!finite_node(static_cast<int32_t>(n))) continue;
+    box.x_min = any ? std::min(box.x_min, x[n]) : x[n];
+    box.x_max = any ? std::max(box.x_max, x[n]) : x[n];
+    box.y_min = any ? std::min(box.y_min, y[n]) : y[n];
+    box.y_max = any ? std::max(box.y_max, y[n]) : y[n];
+    any = true;
+  }
+  if (!any) return out;
   const double width = std::max(box.x_max - box.x_min, 1e-300);
   const double height = std::max(box.y_max - box.y_min, 1e-300);
 
@@ -36,19 +47,23 @@ std::vector<double> rasterize(const std::vector<double>& x, const std::vector<do
   const int g =
       std::clamp(static_cast<int>(std::sqrt(static_cast<double>(triangles.size()))), 1, 1024);
   const double bw = width / g, bh = height / g;
-  auto bucket_x = [&](double v) {
-    return std::clamp(static_cast<int>((v - box.x_min) / bw), 0, g - 1);
+  // Clamped as a double before the conversion: a quotient that overflows int (or is NaN)
+  // must never reach static_cast<int>.
+  auto bucket = [g](double q) {
+    if (!(q > 0)) return 0;
+    if (q >= g - 1) return g - 1;
+    return static_cast<int>(q);
   };
-  auto bucket_y = [&](double v) {
-    return std::clamp(static_cast<int>((v - box.y_min) / bh), 0, g - 1);
-  };
+  auto bucket_x = [&](double v) { return bucket((v - box.x_min) / bw); };
+  auto bucket_y = [&](double v) { return bucket((v - box.y_min) / bh); };
   struct Range {
     int i0, i1, j0, j1;
   };
-  std::vector<Range> ranges(triangles.size());
-  std::vector<int32_t> start(static_cast<std::size_t>(g) * g + 1, 0);
+  std::vector<Range> ranges(triangles.size(), Range{0, -1, 0, -1});  // empty: left out
+  std::size_t entries = 0;
   for (std::size_t t = 0; t < triangles.size(); ++t) {
     const auto& tri = triangles[t];
+    if (!finite_node(tri[0]) || !finite_node(tri[1]) || !finite_node(tri[2])) continue;
     double lo_x = x[tri[0]], hi_x = lo_x, lo_y = y[tri[0]], hi_y = lo_y;
     for (int k = 1; k < 3; ++k) {
       lo_x = std::min(lo_x, x[tri[k]]);
@@ -57,13 +72,25 @@ std::vector<double> rasterize(const std::vector<double>& x, const std::vector<do
       hi_y = std::max(hi_y, y[tri[k]]);
     }
     ranges[t] = {bucket_x(lo_x), bucket_x(hi_x), bucket_y(lo_y), bucket_y(hi_y)};
+    entries += static_cast<std::size_t>(ranges[t].i1 - ranges[t].i0 + 1) *
+               static_cast<std::size_t>(ranges[t].j1 - ranges[t].j0 + 1);
+  }
+  // A badly tangled body puts every triangle in every bucket (n^2 entries): refuse that rather
+  // than overflow the counters or exhaust memory.
+  if (entries > kMaxRasterBucketEntries) {
+    throw std::length_error("rasterize: the deformed mesh is too tangled to resample (" +
+                            std::to_string(entries) + " bucket entries, at most " +
+                            std::to_string(kMaxRasterBucketEntries) + ")");
+  }
+  std::vector<int64_t> start(static_cast<std::size_t>(g) * g + 1, 0);
+  for (std::size_t t = 0; t < triangles.size(); ++t) {
     for (int j = ranges[t].j0; j <= ranges[t].j1; ++j) {
       for (int i = ranges[t].i0; i <= ranges[t].i1; ++i) ++start[j * g + i + 1];
     }
   }
   for (std::size_t b = 1; b < start.size(); ++b) start[b] += start[b - 1];
   std::vector<int32_t> items(static_cast<std::size_t>(start.back()));
-  std::vector<int32_t> fill(start.begin(), start.end() - 1);
+  std::vector<int64_t> fill(start.begin(), start.end() - 1);
   for (std::size_t t = 0; t < triangles.size(); ++t) {
     for (int j = ranges[t].j0; j <= ranges[t].j1; ++j) {
       for (int i = ranges[t].i0; i <= ranges[t].i1; ++i) {
@@ -82,7 +109,7 @@ std::vector<double> rasterize(const std::vector<double>& x, const std::vector<do
     for (int i = 0; i < nx; ++i) {
       const double px = box.x_min + (i + 0.5) * dx;
       const int b = by * g + bucket_x(px);
-      for (int32_t k = start[b]; k < start[b + 1]; ++k) {
+      for (int64_t k = start[b]; k < start[b + 1]; ++k) {
         const auto& tri = triangles[items[k]];
         const double ax = x[tri[0]], ay = y[tri[0]];
         const double bx = x[tri[1]], by2 = y[tri[1]];

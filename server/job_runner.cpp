@@ -2,6 +2,7 @@
 
 #include <google/protobuf/struct.pb.h>
 #include <google/protobuf/util/json_util.h>
+#include <sys/statvfs.h>
 
 #include <algorithm>
 #include <cctype>
@@ -9,6 +10,7 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <limits>
 #include <optional>
 
 #include "server/log.hpp"
@@ -22,6 +24,12 @@ namespace softshock::server {
 namespace fs = std::filesystem;
 
 namespace {
+
+std::string megabytes(double bytes) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.0f MB", bytes / 1e6);
+  return buf;
+}
 
 // Seconds in messages: "8e-09 s", not std::to_string's "0.000000 s".
 std::string seconds(double s) {
@@ -44,6 +52,16 @@ double json_number(const google::protobuf::Struct& s, const std::string& key) {
   const auto it = s.fields().find(key);
   if (it == s.fields().end() || !it->second.has_number_value()) return NAN;
   return it->second.number_value();
+}
+
+// A count of the summary JSON: converting NaN, a negative or an out-of-range double to an
+// integer type is undefined behaviour, so anything but a finite value in 0..2^53 reads as 0.
+template <typename Int>
+Int json_count(const google::protobuf::Struct& s, const std::string& key) {
+  const double v = json_number(s, key);
+  constexpr double kExact = 9007199254740992.0;  // 2^53: every integer below is exact
+  const double hi = std::min(kExact, static_cast<double>(std::numeric_limits<Int>::max()));
+  return std::isfinite(v) && v >= 0 && v <= hi ? static_cast<Int>(v) : Int{0};
 }
 
 }  // namespace
@@ -70,9 +88,9 @@ RunSummary parse_summary_json(const std::string& json) {
   };
   r.status = text("status");
   r.error = text("error");
-  r.elements = static_cast<std::size_t>(json_number(s, "elements"));
-  r.nodes = static_cast<std::size_t>(json_number(s, "nodes"));
-  r.steps = static_cast<int64_t>(json_number(s, "steps"));
+  r.elements = json_count<std::size_t>(s, "elements");
+  r.nodes = json_count<std::size_t>(s, "nodes");
+  r.steps = json_count<int64_t>(s, "steps");
   r.wall_time_s = json_number(s, "wall_time_s");
   r.end_time_s = json_number(s, "end_time_s");
   if (const auto g = f.find("groups"); g != f.end()) {
@@ -89,7 +107,7 @@ RunSummary parse_summary_json(const std::string& json) {
   r.energy_after_pulse_J_per_m = json_number(s, "energy_after_pulse_J_per_m");
   r.max_abar_first_cycle = json_number(s, "max_abar_first_cycle");
   r.max_abar = json_number(s, "max_abar");
-  r.dominant_mode_end = static_cast<int>(json_number(s, "dominant_mode_end"));
+  r.dominant_mode_end = json_count<int>(s, "dominant_mode_end");
   r.shock_at_center_s = json_number(s, "shock_at_center_s");
   if (const auto rr = f.find("rim_reflections_s"); rr != f.end()) {
     for (const auto& v : rr->second.list_value().values()) {
@@ -138,18 +156,6 @@ StoredSummary stored_summary_from_result(const std::string& h5_path, bool* compl
   return stored;
 }
 
-void check_mesh_file(const v1::RunSpec& spec) {
-  if (spec.geometry().shape_case() != v1::Geometry::kMeshFile) return;
-  const fs::path p(spec.geometry().mesh_file());
-  if (p.empty() || p.is_absolute()) {
-    throw SpecError("geometry.mesh_file",
-                    "must be a relative path under the daemon's DATA/meshes/ folder");
-  }
-  for (const auto& part : p) {
-    if (part == "..") throw SpecError("geometry.mesh_file", "must not contain '..'");
-  }
-}
-
 std::string failure_reason(FailureKind kind) {
   switch (kind) {
     case FailureKind::kElementInversion:
@@ -196,6 +202,7 @@ StoredSummary make_stored_summary(const RunSummary& summary, const History& hist
 
 JobRunner::JobRunner(RunnerConfig config, Catalogue& catalogue, JobEvents& events)
     : config_(std::move(config)), catalogue_(catalogue), events_(events) {
+  config_.limits.mesh_root = meshes_dir();  // never a client-chosen path elsewhere
   if (config_.mesh_cache_bytes > 0) {
     try {
       mesh_cache_ = std::make_unique<MeshCache>(mesh_cache_dir(), config_.mesh_cache_bytes);
@@ -207,6 +214,13 @@ JobRunner::JobRunner(RunnerConfig config, Catalogue& catalogue, JobEvents& event
 
 std::string JobRunner::mesh_cache_dir() const {
   return (fs::path(config_.data_dir) / "cache" / "meshes").string();
+}
+
+double JobRunner::free_bytes() const {
+  if (config_.free_bytes) return config_.free_bytes(config_.data_dir);
+  struct statvfs st {};
+  if (::statvfs(config_.data_dir.c_str(), &st) != 0) return INFINITY;  // unknown: do not block
+  return static_cast<double>(st.f_bavail) * static_cast<double>(st.f_frsize);
 }
 
 std::string JobRunner::job_dir(const std::string& id) const {
@@ -251,6 +265,36 @@ bool JobRunner::reuse_identical(const JobRecord& job) const {
 }
 
 void JobRunner::run(const std::string& id, CancelToken& cancel) {
+  try {
+    run_job(id, cancel);
+  } catch (const std::exception& e) {
+    fail_running(id, std::string("internal error: ") + e.what());
+  } catch (...) {
+    fail_running(id, "internal error: unknown exception");
+  }
+}
+
+// No job is left RUNNING by an error of ours: whatever threw, the job is recorded FAILED with
+// the reason (if the catalogue can take a write at all; if not, start-up recovery requeues it).
+void JobRunner::fail_running(const std::string& id, const std::string& error) {
+  log_error("job ", id, ": ", error);
+  try {
+    if (auto job = catalogue_.get(id); job && job->state == JobState::kRunning) {
+      if (catalogue_.finish(id, job->attempt, JobState::kFailed, reason::kInternal, error, "",
+                            job->progress, nullptr, now_us())) {
+        log_info("job ", id, " FAILED ", reason::kInternal, ": ", error);
+      }
+    }
+  } catch (const std::exception& e) {
+    log_error("job ", id,
+              ": cannot record the failure either (stays RUNNING until the next "
+              "start-up requeues it): ",
+              e.what());
+  }
+  events_.forget(id);  // wakes watchers
+}
+
+void JobRunner::run_job(const std::string& id, CancelToken& cancel) {
   using Clock = std::chrono::steady_clock;
   const auto started = Clock::now();
   // An identical run may have finished while this one waited in the queue.
@@ -266,8 +310,16 @@ void JobRunner::run(const std::string& id, CancelToken& cancel) {
   JobProgressRecord last_progress;
   auto finish = [&](JobState state, const std::string& why, const std::string& error,
                     const std::string& result_path, const StoredSummary* summary) {
-    const bool ok = catalogue_.finish(id, job->attempt, state, why, error, result_path,
-                                      last_progress, summary, now_us());
+    bool ok = false;
+    try {
+      ok = catalogue_.finish(id, job->attempt, state, why, error, result_path, last_progress,
+                             summary, now_us());
+    } catch (const std::exception& e) {
+      // The outcome could not be recorded (catalogue error, disk full): a plain FAILED needs
+      // no summary, so it may still commit.
+      fail_running(id, "recording the " + std::string(to_string(state)) + " outcome: " + e.what());
+      return;
+    }
     if (!ok) {
       log_warning("job ", id, ": ", to_string(state), " not recorded (job changed meanwhile)");
     } else if (state == JobState::kSucceeded) {
@@ -291,22 +343,16 @@ void JobRunner::run(const std::string& id, CancelToken& cancel) {
   Problem problem;
   SolverOptions options;
   MeshingReport meshing;
+  ResourceEstimate estimate;
   try {
-    // mesh_file is validated and read under DATA/meshes/, never the working directory; the
-    // run's own record (spec) keeps the relative name.
-    spec = parse_stored_spec(job->spec_json);
-    v1::RunSpec meshing_spec = spec;
-    if (spec.geometry().shape_case() == v1::Geometry::kMeshFile) {
-      check_mesh_file(spec);
-      meshing_spec.mutable_geometry()->set_mesh_file(
-          (fs::path(meshes_dir()) / spec.geometry().mesh_file()).string());
-    }
-    meshing_spec = normalize_spec(meshing_spec, config_.limits);
-    const std::string relative = spec.geometry().mesh_file();
-    spec = meshing_spec;
-    if (!relative.empty()) spec.mutable_geometry()->set_mesh_file(relative);
-    problem = make_problem(meshing_spec, config_.limits, mesh_cache_.get(), &meshing);
+    // limits.mesh_root confines geometry.mesh_file to DATA/meshes/ (solver/mesh_file_path.hpp).
+    spec = normalize_spec(parse_stored_spec(job->spec_json), config_.limits);
+    problem = make_problem(spec, config_.limits, mesh_cache_.get(), &meshing);
     if (!meshing.warning.empty()) log_warning("job ", id, ": mesh not cached: ", meshing.warning);
+    // Again with the real mesh (a mesh_file is first known here) and today's limits.
+    estimate = estimate_resources(spec, static_cast<double>(problem.mesh.element_count()),
+                                  mesh_area(problem.mesh));
+    check_admission(spec, estimate, config_.admission);
     options = make_options(spec);
     options.threads = std::max(1, config_.solver_threads);
   } catch (const SpecError& e) {
@@ -323,7 +369,7 @@ void JobRunner::run(const std::string& id, CancelToken& cancel) {
         requeue(reason::kShutdown);
         return;
       case StopReason::kWallTime:
-        finish(JobState::kFailed, reason::kWallTimeLimit,
+        finish(JobState::kFailed, reason::kWallTimeExceeded,
                "wall time limit of " + seconds(config_.max_wall_time_s) + " reached while meshing",
                "", nullptr);
         return;
@@ -335,6 +381,14 @@ void JobRunner::run(const std::string& id, CancelToken& cancel) {
   }
 
   const std::string dir = job_dir(id);
+  if (const double free = free_bytes(); free < estimate.disk_bytes + config_.min_free_bytes) {
+    finish(JobState::kFailed, reason::kDiskFull,
+           "the data folder has " + megabytes(free) + " free; this job's result needs about " +
+               megabytes(estimate.disk_bytes) + " above a reserve of " +
+               megabytes(config_.min_free_bytes),
+           "", nullptr);
+    return;
+  }
   std::unique_ptr<AsyncResultWriter> writer;
   try {
     std::error_code ec;
@@ -368,8 +422,20 @@ void JobRunner::run(const std::string& id, CancelToken& cancel) {
       cancel.request(StopReason::kWallTime);
     }
   };
+  // A frame is about as large as the estimate's share per frame; it is not written when it
+  // would eat into the reserve (the catalogue must still be able to commit the outcome).
+  const double frame_bytes =
+      problem.mesh.element_count() * 56.0 + 64.0 * static_cast<double>(problem.mesh.x.size());
+  bool disk_full = false;
   control.on_frame = [&](const FieldFrame& frame) {
     if (!io_error.empty()) return;
+    if (const double free = free_bytes(); free < frame_bytes + config_.min_free_bytes) {
+      disk_full = true;
+      io_error = "the data folder has " + megabytes(free) + " free, below the reserve of " +
+                 megabytes(config_.min_free_bytes) + " plus a frame";
+      cancel.request(StopReason::kInternal);
+      return;
+    }
     try {
       writer->write_frame(frame);
     } catch (const std::exception& e) {
@@ -409,13 +475,13 @@ void JobRunner::run(const std::string& id, CancelToken& cancel) {
       switch (cancel.reason()) {
         case StopReason::kWallTime:
           state = JobState::kFailed;
-          why = reason::kWallTimeLimit;
+          why = reason::kWallTimeExceeded;
           error = "wall time limit of " + seconds(config_.max_wall_time_s) +
                   " reached at simulated time " + seconds(last_progress.simulated_time_s);
           break;
         case StopReason::kInternal:
           state = JobState::kFailed;
-          why = reason::kInternal;
+          why = disk_full ? reason::kDiskFull : reason::kInternal;
           error = "writing a field frame: " + io_error;
           break;
         default:
@@ -434,7 +500,7 @@ void JobRunner::run(const std::string& id, CancelToken& cancel) {
     summary.meshing_time_s = meshing.seconds;
     summary.mesh_cache = to_string(meshing.cache);
     stored = make_stored_summary(summary, result.history);
-    if (state != JobState::kFailed || why != reason::kInternal) {
+    if (state != JobState::kFailed || (why != reason::kInternal && why != reason::kDiskFull)) {
       writer->finish(result.history, summary, state == JobState::kSucceeded, error);
     }
   } catch (const std::exception& e) {

@@ -5,9 +5,11 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <string>
 
+#include "server/admission.hpp"
 #include "server/catalogue.hpp"
 #include "server/job_events.hpp"
 #include "server/scheduler.hpp"
@@ -19,9 +21,16 @@ namespace softshock::server {
 struct RunnerConfig {
   std::string data_dir;  // absolute
   SpecLimits limits;
-  int solver_threads = 1;            // element-loop threads per job (overrides run.threads)
-  double max_wall_time_s = 0;        // 0 = no limit
-  double progress_interval_s = 0.1;  // how often live progress is published
+  int solver_threads = 1;      // element-loop threads per job (overrides run.threads)
+  double max_wall_time_s = 0;  // 0 = no limit
+  AdmissionLimits admission;   // checked again at start, with the real mesh
+  // Free space the data folder keeps for the catalogue and other jobs: a job does not start
+  // unless its estimated result fits above it, and stops (DISK_FULL) before a frame would
+  // eat into it.
+  double min_free_bytes = 256.0 * (1 << 20);
+  // Free bytes on the filesystem holding a path; empty = statvfs (tests substitute one).
+  std::function<double(const std::string&)> free_bytes;
+  double progress_interval_s = 0.1;                         // how often live progress is published
   std::uint64_t mesh_cache_bytes = std::uint64_t{1} << 30;  // DATA/cache/meshes; 0 = no cache
 };
 
@@ -29,12 +38,17 @@ class JobRunner {
  public:
   JobRunner(RunnerConfig config, Catalogue& catalogue, JobEvents& events);
 
-  // The scheduler's work function.
+  // The scheduler's work function. Never leaves the job RUNNING because of an exception: it is
+  // then recorded FAILED with reason INTERNAL and the error.
   void run(const std::string& id, CancelToken& cancel);
 
   std::string job_dir(const std::string& id) const;
+  const std::string& data_dir() const { return config_.data_dir; }
+  // DATA/meshes/: the only folder geometry.mesh_file is read from (the runner's limits carry
+  // it as mesh_root).
   std::string meshes_dir() const;
   std::string mesh_cache_dir() const;  // DATA/cache/meshes
+  const SpecLimits& limits() const { return config_.limits; }
   // Removes leftovers of an interrupted attempt (result.h5.tmp and friends) in a job folder.
   void remove_stale_files(const std::string& id) const;
   // Gives job `id` the finished result files at source_result_path (hard links); returns its
@@ -45,15 +59,15 @@ class JobRunner {
   bool reuse_identical(const JobRecord& job) const;
 
  private:
+  void run_job(const std::string& id, CancelToken& cancel);
+  double free_bytes() const;
+  void fail_running(const std::string& id, const std::string& error);
+
   RunnerConfig config_;
   Catalogue& catalogue_;
   JobEvents& events_;
   std::unique_ptr<MeshCache> mesh_cache_;  // null: disabled or unusable
 };
-
-// The daemon's rule for geometry.mesh_file: a relative path without "..", resolved under
-// DATA/meshes/ — clients must not make the server open arbitrary files. Throws SpecError.
-void check_mesh_file(const v1::RunSpec& spec);
 
 // FAILED reason for a solver failure: ELEMENT_INVERSION, NON_FINITE, TIME_STEP_COLLAPSE or
 // INTERNAL.

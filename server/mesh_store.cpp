@@ -176,40 +176,10 @@ v1::RunSpec resolve_mesh_id(v1::RunSpec spec, const MeshStore& meshes) {
 
 }  // namespace
 
-v1::RunSpec with_absolute_mesh_file(v1::RunSpec spec, const MeshStore& meshes) {
-  if (spec.geometry().shape_case() == v1::Geometry::kMeshFile) {
-    check_mesh_file(spec);
-    spec.mutable_geometry()->set_mesh_file(
-        (fs::path(meshes.meshes_dir()) / spec.geometry().mesh_file()).string());
-  }
-  return spec;
-}
-
-void with_relative_mesh_file(CanonicalSpec& spec, const MeshStore& meshes) {
-  if (spec.spec.geometry().shape_case() != v1::Geometry::kMeshFile) return;
-  const std::string prefix = (fs::path(meshes.meshes_dir()) / "").string();
-  const std::string& file = spec.spec.geometry().mesh_file();
-  if (file.rfind(prefix, 0) != 0) return;
-  spec.spec.mutable_geometry()->set_mesh_file(file.substr(prefix.size()));
-  spec.json = spec_to_json(spec.spec);
-  spec.hash = sha256_hex(spec.json);
-}
-
 CanonicalSpec daemon_canonical_spec(const v1::RunSpec& spec, const SpecLimits& limits,
                                     const MeshStore& meshes) {
-  CanonicalSpec out;
-  try {
-    out = canonical_spec(with_absolute_mesh_file(resolve_mesh_id(spec, meshes), meshes), limits);
-  } catch (const SpecError& e) {
-    // Messages name the file as the client did, not by the server's path.
-    const std::string prefix = (fs::path(meshes.meshes_dir()) / "").string();
-    std::string rule = std::string(e.what()).substr(e.field().size() + 2);
-    for (std::size_t at; (at = rule.find(prefix)) != std::string::npos;)
-      rule.erase(at, prefix.size());
-    throw SpecError(e.field(), rule);
-  }
-  with_relative_mesh_file(out, meshes);
-  return out;
+  // limits.mesh_root (DATA/meshes/) confines mesh_file there (solver/mesh_file_path.hpp).
+  return canonical_spec(resolve_mesh_id(spec, meshes), limits);
 }
 
 }  // namespace softshock::server

@@ -55,14 +55,10 @@ class MeshStore {
 };
 
 // canonical_spec() as the daemon applies it to a submitted spec: geometry.mesh_id becomes
-// mesh_file "uploads/{id}.msh" (the mesh must exist), mesh_file must be relative without ".."
-// and is looked up under DATA/meshes/ (never the daemon's working directory), and the stored
-// spec keeps the relative path. Throws SpecError.
+// mesh_file "uploads/{id}.msh" (the mesh must exist); limits.mesh_root (DATA/meshes/) makes
+// mesh_file a relative path resolved there only, and the stored spec keeps that relative path.
+// Throws SpecError.
 CanonicalSpec daemon_canonical_spec(const v1::RunSpec& spec, const SpecLimits& limits,
                                     const MeshStore& meshes);
-// The spec whose mesh_file points at the real file (for expand_grid, which validates points),
-// and back: the relative path, with json and hash recomputed.
-v1::RunSpec with_absolute_mesh_file(v1::RunSpec spec, const MeshStore& meshes);
-void with_relative_mesh_file(CanonicalSpec& spec, const MeshStore& meshes);
 
 }  // namespace softshock::server

@@ -13,6 +13,7 @@
 #include <optional>
 #include <sstream>
 #include <thread>
+#include <tuple>
 
 #include "server/field_raster.hpp"
 #include "server/grid.hpp"
@@ -48,6 +49,14 @@ Status invalid(const std::string& field, const std::string& rule) {
 }
 Status not_found(const std::string& id) {
   return {StatusCode::NOT_FOUND, "job " + id + " not found"};
+}
+
+// A Timestamp inside 0001-01-01..9999-12-31 with nanos in 0..999,999,999 (google.protobuf's
+// own rule): only those convert to microseconds without overflowing int64.
+bool valid_timestamp(const google::protobuf::Timestamp& t) {
+  return t.seconds() >= TimeUtil::kTimestampMinSeconds &&
+         t.seconds() <= TimeUtil::kTimestampMaxSeconds && t.nanos() >= 0 &&
+         t.nanos() <= 999'999'999;
 }
 
 int64_t timestamp_us(const google::protobuf::Timestamp& t) {
@@ -160,15 +169,6 @@ const std::map<std::string, FieldKind>& field_kinds() {
   return kinds;
 }
 
-template <typename T>
-std::vector<T> every_kth(const std::vector<T>& v, int k) {
-  if (k <= 1) return v;
-  std::vector<T> out;
-  out.reserve(v.size() / static_cast<std::size_t>(k) + 1);
-  for (std::size_t i = 0; i < v.size(); i += static_cast<std::size_t>(k)) out.push_back(v[i]);
-  return out;
-}
-
 // Runs a handler behind the token check; any exception becomes INTERNAL (and a log line) so a
 // bug in one request never takes the daemon down.
 template <typename F>
@@ -213,7 +213,10 @@ SimulationService::SimulationService(ServiceConfig config, Catalogue& catalogue,
       runner_(runner),
       auth_(auth),
       meshes_(meshes),
-      id_random_(std::random_device{}()) {}
+      id_random_(std::random_device{}()) {
+  // Specs are validated against the runner's DATA/meshes/ (mesh_file never leaves it).
+  config_.limits.mesh_root = runner_.meshes_dir();
+}
 
 std::string SimulationService::new_job_id() {
   std::lock_guard lock(id_mutex_);
@@ -247,15 +250,28 @@ void SimulationService::fill_job(const JobRecord& r, v1::Job* job) const {
   progress->set_simulated_time(p.simulated_time_s);
   progress->set_steps(p.steps);
   progress->set_dt(p.dt_s);
-  job->set_error(r.error);
+  // The server's own folders stay private: result_path is relative to the data folder, and
+  // an error naming a file there says DATA/ instead.
+  job->set_error(without_data_dir(r.error, "DATA/"));
   job->set_reason(r.reason);
-  job->set_result_path(r.result_path);
+  job->set_result_path(without_data_dir(r.result_path, ""));
   job->set_attempt(r.attempt);
   job->set_request_id(r.request_id);
   job->set_spec_hash(r.spec_hash);
   job->set_grid_id(r.grid_id);
   job->set_grid_index(r.grid_index);
   job->set_reused_from(r.reused_from);
+}
+
+std::string SimulationService::without_data_dir(const std::string& text,
+                                                const std::string& replacement) const {
+  const std::string prefix = runner_.data_dir() + "/";
+  std::string out = text;
+  for (auto at = out.find(prefix); at != std::string::npos;
+       at = out.find(prefix, at + replacement.size())) {
+    out.replace(at, prefix.size(), replacement);
+  }
+  return out;
 }
 
 std::optional<JobRecord> SimulationService::wait_terminal(const std::string& id,
@@ -271,6 +287,19 @@ std::optional<JobRecord> SimulationService::wait_terminal(const std::string& id,
     if (now >= deadline || events_.shutting_down()) return record;
     events_.wait(id, seen, std::min(deadline, now + std::chrono::milliseconds(100)));
   }
+}
+
+// "pbar = 0.5, tbar_pulse = 0.1": point i of a grid (row-major, last axis fastest).
+static std::string point_coordinates(const GridPlan& plan, std::size_t index) {
+  std::string out;
+  for (std::size_t a = plan.axes.size(); a-- > 0;) {
+    const auto n = static_cast<std::size_t>(plan.shape[a]);
+    char value[32];
+    std::snprintf(value, sizeof value, "%.6g", plan.axes[a].values(static_cast<int>(index % n)));
+    out = plan.axes[a].name() + " = " + value + (out.empty() ? "" : ", ") + out;
+    index /= n;
+  }
+  return out;
 }
 
 // --- SubmitJob -----------------------------------------------------------------------------
@@ -372,6 +401,7 @@ Status SimulationService::submit(grpc::ServerContext* ctx, const v1::SubmitJobRe
   CanonicalSpec spec;
   try {
     spec = daemon_canonical_spec(req.spec(), config_.limits, meshes_);
+    check_spec_admission(spec.spec, config_.admission);
   } catch (const SpecError& e) {
     return spec_invalid(ctx, "spec", e);
   }
@@ -441,6 +471,13 @@ Status SimulationService::ListJobs(grpc::ServerContext* ctx, const v1::ListJobsR
 }
 
 Status SimulationService::list(const v1::ListJobsRequest& req, v1::ListJobsResponse* resp) {
+  for (const auto& [given, t, field] :
+       {std::tuple{req.has_created_after(), &req.created_after(), "created_after"},
+        std::tuple{req.has_created_before(), &req.created_before(), "created_before"}}) {
+    if (given && !valid_timestamp(*t)) {
+      return invalid(field, "must be a timestamp between years 1 and 9999 (nanos 0..999999999)");
+    }
+  }
   int page_size = 0;
   if (Status s = page_size_of(req.page_size(), &page_size); !s.ok()) return s;
   ListFilter filter;
@@ -661,6 +698,7 @@ Status SimulationService::time_series(const v1::GetTimeSeriesRequest& req, v1::T
   if (Status s = result_file(id, &path); !s.ok()) return s;
   ResultReader reader(path);
   const auto known = reader.series_names();
+  // Each name at most once (a repeated name would be read and sent again), in request order.
   std::vector<std::string> names;
   for (const auto& n : req.names()) {
     if (std::find(known.begin(), known.end(), n) == known.end()) {
@@ -668,26 +706,35 @@ Status SimulationService::time_series(const v1::GetTimeSeriesRequest& req, v1::T
       for (const auto& k : known) list += (list.empty() ? "" : ", ") + k;
       return invalid("names", "unknown series '" + n + "' (known: " + list + ")");
     }
-    names.push_back(n);
+    if (n != "time" && std::find(names.begin(), names.end(), n) == names.end()) names.push_back(n);
   }
-  if (names.empty()) {
+  if (req.names().empty()) {
     for (const auto& k : known) {
       if (k != "time") names.push_back(k);
     }
   }
-  const auto time = every_kth(reader.series("time"), req.every());
-  if (time.size() * (names.size() + 1) > kMaxUnaryDoubles) {
-    return {StatusCode::RESOURCE_EXHAUSTED, "answer too large (" +
-                                                std::to_string(time.size() * (names.size() + 1)) +
-                                                " values); ask for fewer names or a larger every"};
+  // The size is known before anything is read, and only the kept samples are read.
+  const std::size_t k = req.every() <= 1 ? 1 : static_cast<std::size_t>(req.every());
+  const std::size_t samples = reader.dims("/timeseries/time").at(0);
+  const std::size_t kept = (samples + k - 1) / k;
+  if (kept * (names.size() + 1) > kMaxUnaryDoubles) {
+    return {StatusCode::RESOURCE_EXHAUSTED,
+            "answer too large (" + std::to_string(kept * (names.size() + 1)) + " values, at most " +
+                std::to_string(kMaxUnaryDoubles) + "); ask for fewer names or a larger every"};
   }
+  auto read = [&](const std::string& name) {
+    ResultReader::Slice slice;
+    slice.stride = k;
+    slice.rows = std::min(kept, (reader.dims("/timeseries/" + name).at(0) + k - 1) / k);
+    return reader.slice("/timeseries/" + name, slice);
+  };
+  const auto time = read("time");
   resp->mutable_time()->Add(time.begin(), time.end());
   for (const auto& n : names) {
-    if (n == "time") continue;
     auto* series = resp->add_series();
     series->set_name(n);
     series->set_units(series_units(n));
-    const auto values = every_kth(reader.series(n), req.every());
+    const auto values = read(n);
     series->mutable_values()->Add(values.begin(), values.end());
   }
   return Status::OK;
@@ -706,9 +753,9 @@ Status SimulationService::modes(const v1::GetModesRequest& req, v1::Modes* resp)
   if (req.mode_max() < 0) return invalid("mode_max", "must not be negative");
   if (Status s = result_file(id, &path); !s.ok()) return s;
   ResultReader reader(path);
-  std::size_t rows = 0, cols = 0;
-  const auto amplitudes = reader.mode_amplitudes(rows, cols);
-  const auto times = reader.mode_times();
+  const auto shape = reader.dims("/modes/amplitude");
+  const std::size_t rows = std::min(shape.at(0), reader.dims("/modes/time").at(0));
+  const std::size_t cols = shape.size() > 1 ? shape[1] : 1;
   if (cols == 0 || rows == 0) {
     resp->set_mode_min(req.mode_min());
     return Status::OK;
@@ -724,18 +771,25 @@ Status SimulationService::modes(const v1::GetModesRequest& req, v1::Modes* resp)
   }
   const int count = hi - lo + 1;
   const std::size_t k = req.every() <= 1 ? 1 : static_cast<std::size_t>(req.every());
-  const std::size_t kept = (std::min(rows, times.size()) + k - 1) / k;
+  const std::size_t kept = (rows + k - 1) / k;
   if (kept * static_cast<std::size_t>(count + 1) > kMaxUnaryDoubles) {
     return {StatusCode::RESOURCE_EXHAUSTED,
-            "answer too large; ask for fewer modes or a larger every"};
+            "answer too large (" + std::to_string(kept * static_cast<std::size_t>(count + 1)) +
+                " values, at most " + std::to_string(kMaxUnaryDoubles) +
+                "); ask for fewer modes or a larger every"};
   }
+  // Only the requested rows and modes are read (never the whole dataset).
+  ResultReader::Slice slice;
+  slice.stride = k;
+  slice.rows = kept;
+  const auto times = reader.slice("/modes/time", slice);
+  slice.col_first = static_cast<std::size_t>(lo);
+  slice.col_count = static_cast<std::size_t>(count);
+  const auto amplitudes = reader.slice("/modes/amplitude", slice);
   resp->set_mode_min(lo);
   resp->set_mode_count(count);
-  for (std::size_t r = 0; r < std::min(rows, times.size()); r += k) {
-    resp->add_time(times[r]);
-    const double* row = amplitudes.data() + r * cols;
-    resp->mutable_amplitude()->Add(row + lo, row + hi + 1);
-  }
+  resp->mutable_time()->Add(times.begin(), times.end());
+  resp->mutable_amplitude()->Add(amplitudes.begin(), amplitudes.end());
   return Status::OK;
 }
 
@@ -820,7 +874,11 @@ Status SimulationService::field(grpc::ServerContext* ctx, const v1::GetFieldRequ
       y[i] = mesh.y[i] + disp[2 * i + 1];
     }
     RasterBox box;
-    values = rasterize(x, y, mesh.triangles, values, kind.components, kind.node, nx, ny, box);
+    try {
+      values = rasterize(x, y, mesh.triangles, values, kind.components, kind.node, nx, ny, box);
+    } catch (const std::length_error& e) {
+      return {StatusCode::RESOURCE_EXHAUSTED, e.what()};
+    }
     header->set_location("raster");
     header->set_nx(nx);
     header->set_ny(ny);
@@ -943,9 +1001,15 @@ Status SimulationService::submit_grid(grpc::ServerContext* ctx, const v1::Submit
     return spec_invalid(ctx, "base_spec", e);
   }
   try {
-    // Points are validated against the mesh file itself, then stored with its relative name.
-    plan = expand_grid(with_absolute_mesh_file(base.spec, meshes_), req.axes(), config_.limits);
-    for (auto& point : plan.points) with_relative_mesh_file(point, meshes_);
+    plan = expand_grid(base.spec, req.axes(), config_.limits);
+    for (std::size_t i = 0; i < plan.points.size(); ++i) {
+      try {
+        check_spec_admission(plan.points[i].spec, config_.admission);
+      } catch (const SpecError& e) {
+        throw SpecError(
+            "axes", "the point " + point_coordinates(plan, i) + " is refused: spec." + e.what());
+      }
+    }
   } catch (const SpecError& e) {
     return spec_invalid(ctx, "", e);
   }

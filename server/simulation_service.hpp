@@ -8,6 +8,7 @@
 #include <random>
 #include <string>
 
+#include "server/admission.hpp"
 #include "server/auth.hpp"
 #include "server/catalogue.hpp"
 #include "server/executor.hpp"
@@ -22,6 +23,7 @@ namespace softshock::server {
 
 struct ServiceConfig {
   SpecLimits limits;
+  AdmissionLimits admission;          // estimated steps, memory, disk per job
   int max_streams = 64;               // concurrent WatchJob + GetField streams
   double watch_min_interval_s = 0.2;  // at most ~5 WatchJob updates per second
   double cancel_wait_s = 5.0;         // CancelJob/DeleteJob wait this long for a running job
@@ -89,6 +91,8 @@ class SimulationService final : public v1::SimulationService::Service {
   // The grid with its live counts, progress and derived state.
   void fill_grid(const GridRecord& record, v1::Grid* grid) const;
 
+  // `text` with every "DATA_DIR/" replaced (absolute server paths never leave the daemon).
+  std::string without_data_dir(const std::string& text, const std::string& replacement) const;
   // Job state with the live progress of a running job overlaid.
   void fill_job(const JobRecord& record, v1::Job* job) const;
   // Waits until the job is terminal (or gone) or the wait runs out; returns the last record.

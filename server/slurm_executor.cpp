@@ -1,15 +1,12 @@
 #include "server/slurm_executor.hpp"
 
-#include <fcntl.h>
-#include <poll.h>
 #include <pwd.h>
-#include <signal.h>
-#include <spawn.h>
-#include <sys/wait.h>
 #include <unistd.h>
 
 #include <algorithm>
 #include <cerrno>
+#include <charconv>
+#include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
@@ -18,9 +15,9 @@
 #include <sstream>
 
 #include "server/log.hpp"
+#include "server/process_io.hpp"
 #include "solver/io/result_file.hpp"
-
-extern char** environ;
+#include "solver/mesh_file_path.hpp"
 
 namespace softshock::server {
 
@@ -30,79 +27,15 @@ namespace {
 
 constexpr std::size_t kMaxArrayTasks = 1000;  // Slurm's default MaxArraySize is 1001
 constexpr const char* kNamePrefix = "softshock-";
+// The Slurm id recorded for a job whose Slurm job was purged before we learnt its id: no Slurm
+// command knows it, so its files decide its outcome.
+constexpr const char* kPurgedPrefix = "purged-";
 
-struct CommandResult {
-  int status = -1;  // exit status; -1 = could not run or killed
-  std::string out, err;
-};
-
-// Runs a Slurm client without a shell (arguments never need quoting) and collects its output.
-// The child gets default signal handling back: the daemon blocks SIGTERM/SIGINT in every thread
-// and ignores SIGPIPE, and exec would pass both on.
-CommandResult run_command(const std::vector<std::string>& argv) {
-  CommandResult r;
-  int out_pipe[2], err_pipe[2];
-  if (::pipe2(out_pipe, O_CLOEXEC) != 0) return r;
-  if (::pipe2(err_pipe, O_CLOEXEC) != 0) {
-    ::close(out_pipe[0]);
-    ::close(out_pipe[1]);
-    return r;
-  }
-  posix_spawn_file_actions_t actions;
-  posix_spawn_file_actions_init(&actions);
-  posix_spawn_file_actions_adddup2(&actions, out_pipe[1], STDOUT_FILENO);
-  posix_spawn_file_actions_adddup2(&actions, err_pipe[1], STDERR_FILENO);
-  posix_spawn_file_actions_addopen(&actions, STDIN_FILENO, "/dev/null", O_RDONLY, 0);
-  posix_spawnattr_t attr;
-  posix_spawnattr_init(&attr);
-  sigset_t none, defaults;
-  sigemptyset(&none);
-  sigemptyset(&defaults);
-  for (int s : {SIGPIPE, SIGTERM, SIGINT}) sigaddset(&defaults, s);
-  posix_spawnattr_setsigmask(&attr, &none);
-  posix_spawnattr_setsigdefault(&attr, &defaults);
-  posix_spawnattr_setflags(&attr, POSIX_SPAWN_SETSIGMASK | POSIX_SPAWN_SETSIGDEF);
-  std::vector<char*> args;
-  for (const auto& a : argv) args.push_back(const_cast<char*>(a.c_str()));
-  args.push_back(nullptr);
-  pid_t pid = -1;
-  const int rc = ::posix_spawnp(&pid, args[0], &actions, &attr, args.data(), environ);
-  posix_spawn_file_actions_destroy(&actions);
-  posix_spawnattr_destroy(&attr);
-  ::close(out_pipe[1]);
-  ::close(err_pipe[1]);
-  if (rc != 0) {
-    ::close(out_pipe[0]);
-    ::close(err_pipe[0]);
-    r.err = argv[0] + ": cannot run: " + std::strerror(rc);
-    return r;
-  }
-  pollfd fds[2] = {{out_pipe[0], POLLIN, 0}, {err_pipe[0], POLLIN, 0}};
-  std::string* sinks[2] = {&r.out, &r.err};
-  int open_fds = 2;
-  char buf[4096];
-  while (open_fds > 0) {
-    if (::poll(fds, 2, -1) < 0) {
-      if (errno == EINTR) continue;
-      break;
-    }
-    for (int k = 0; k < 2; ++k) {
-      if (fds[k].fd < 0 || fds[k].revents == 0) continue;
-      const ssize_t n = ::read(fds[k].fd, buf, sizeof buf);
-      if (n > 0) {
-        sinks[k]->append(buf, static_cast<std::size_t>(n));
-      } else if (n == 0 || errno != EINTR) {
-        ::close(fds[k].fd);
-        fds[k].fd = -1;
-        --open_fds;
-      }
-    }
-  }
-  int status = 0;
-  while (::waitpid(pid, &status, 0) < 0 && errno == EINTR) {
-  }
-  r.status = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return r;
+// A seconds figure for a command line, exact (shortest round-trip form).
+std::string end_time_text(double s) {
+  char buf[32];
+  const auto [end, ec] = std::to_chars(buf, buf + sizeof buf, s);
+  return ec == std::errc() ? std::string(buf, end) : std::to_string(s);
 }
 
 std::string trim(const std::string& s) {
@@ -120,20 +53,6 @@ std::string sh_quote(const std::string& s) {
   std::string out = "'";
   for (char c : s) out += c == '\'' ? std::string("'\\''") : std::string(1, c);
   return out + "'";
-}
-
-void write_text(const fs::path& path, const std::string& text) {
-  std::ofstream out(path, std::ios::trunc | std::ios::binary);
-  out << text;
-  out.close();
-  if (!out) throw std::runtime_error("cannot write " + path.string());
-}
-
-std::string read_text(const fs::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::ostringstream s;
-  s << in.rdbuf();
-  return s.str();
 }
 
 // The last non-empty line of the solver's stderr: its own reason for failing.
@@ -176,6 +95,12 @@ SlurmOutcome map_slurm_state(const std::string& slurm_state) {
   static const std::set<std::string> failed = {"FAILED",    "TIMEOUT",   "OUT_OF_MEMORY",
                                                "NODE_FAIL", "BOOT_FAIL", "DEADLINE",
                                                "PREEMPTED", "REVOKED",   "SPECIAL_EXIT"};
+  if (s == "TIMEOUT") {  // sbatch --time carries the daemon's wall limit
+    o.kind = SlurmOutcome::Kind::kTerminal;
+    o.state = JobState::kFailed;
+    o.reason = reason::kWallTimeExceeded;
+    return o;
+  }
   if (waiting.count(s)) {
     o.kind = SlurmOutcome::Kind::kWaiting;
   } else if (running.count(s)) {
@@ -328,6 +253,7 @@ void SlurmExecutor::loop() {
         send_cancels();
         return;
       }
+      record_unmarked();
       if (!adopted_) adopt_submitted_before_crash();
       if (adopted_) submit_pending();
       send_cancels();
@@ -375,6 +301,16 @@ void SlurmExecutor::adopt_submitted_before_crash() {
       found.emplace_back(ids[k], ids.size() == 1 ? base : base + "_" + std::to_string(k));
     }
   }
+  // Not listed at all, but its batch ran (solve.log is removed before every submission and
+  // written only by the batch): Slurm took it and has since purged it. Resubmitting would run
+  // it twice and delete the first run's result; it is adopted instead, and its files decide.
+  std::set<std::string> adopted;
+  for (const auto& [id, slurm_id] : found) adopted.insert(id);
+  for (const auto& id : waiting) {
+    std::error_code ec;
+    if (adopted.count(id) || !fs::exists(fs::path(job_dir(id)) / "solve.log", ec)) continue;
+    found.emplace_back(id, kPurgedPrefix + id);
+  }
   if (!found.empty()) {
     catalogue_.mark_submitted(found);
     std::lock_guard lock(mutex_);
@@ -413,7 +349,79 @@ void SlurmExecutor::submit_pending() {
   std::vector<JobRecord> singles;
   std::map<std::string, std::vector<JobRecord>> grids;
   std::set<std::string> taken;
-  for (const auto& p : batch) {
+  std::size_t next = 0;  // batch[next..] not looked at yet
+  // A catalogue error while sorting the batch out puts back what was not sorted yet (and what
+  // was sorted but not sent): those jobs wait for the next round instead of being dropped.
+  auto put_back = [&] {
+    std::set<std::string> back;
+    for (std::size_t k = next; k < batch.size(); ++k) back.insert(batch[k].id);
+    for (const auto& j : singles) back.insert(j.id);
+    for (const auto& [g, points] : grids) {
+      for (const auto& j : points) back.insert(j.id);
+    }
+    std::lock_guard lock(mutex_);
+    for (const auto& p : batch) {
+      if (back.count(p.id) && std::none_of(pending_.begin(), pending_.end(),
+                                           [&](const Pending& q) { return q.id == p.id; })) {
+        pending_.push_back(p);
+      }
+    }
+  };
+  try {
+    collect_batches(batch, next, singles, grids, taken);
+  } catch (...) {
+    put_back();
+    throw;
+  }
+  {
+    // Points taken with their grid are no longer waiting for a later round.
+    std::lock_guard lock(mutex_);
+    std::erase_if(pending_, [&](const Pending& p) { return taken.count(p.id) != 0; });
+  }
+  for (const auto& [grid, points] : grids) {
+    for (std::size_t first = 0; first < points.size(); first += kMaxArrayTasks) {
+      const auto last = std::min(points.size(), first + kMaxArrayTasks);
+      submit_batch_safely({points.begin() + static_cast<std::ptrdiff_t>(first),
+                           points.begin() + static_cast<std::ptrdiff_t>(last)});
+    }
+  }
+  for (const auto& job : singles) submit_batch_safely({job});
+}
+
+// One batch's failure is its own: its jobs are failed with the reason (they never reached
+// Slurm), or, if even that cannot be recorded, wait for the next round; other batches go on.
+void SlurmExecutor::submit_batch_safely(const std::vector<JobRecord>& jobs) {
+  try {
+    submit_batch(jobs);
+    return;
+  } catch (const std::exception& e) {
+    log_error("slurm: submitting ", jobs.size(), " job(s) failed: ", e.what());
+    for (const auto& job : jobs) {
+      bool tracked = false;
+      {
+        std::lock_guard lock(mutex_);
+        tracked = jobs_.count(job.id) != 0;
+      }
+      if (tracked) continue;  // it did reach Slurm
+      try {
+        fail_unsubmitted(job, reason::kInternal,
+                         std::string("preparing the Slurm batch: ") + e.what());
+      } catch (const std::exception& again) {
+        log_error("slurm: job ", job.id, ": cannot record the failure (", again.what(),
+                  "); retrying next round");
+        std::lock_guard lock(mutex_);
+        pending_.push_back({job.id, job.priority, job.seq});
+      }
+    }
+  }
+}
+
+void SlurmExecutor::collect_batches(const std::vector<Pending>& batch, std::size_t& next,
+                                    std::vector<JobRecord>& singles,
+                                    std::map<std::string, std::vector<JobRecord>>& grids,
+                                    std::set<std::string>& taken) {
+  for (; next < batch.size(); ++next) {
+    const Pending& p = batch[next];
     if (taken.count(p.id)) continue;
     auto job = catalogue_.get(p.id);
     if (!job || job->state != JobState::kQueued) continue;  // cancelled or deleted meanwhile
@@ -441,19 +449,6 @@ void SlurmExecutor::submit_pending() {
       taken.insert(point->id);
     }
   }
-  {
-    // Points taken with their grid are no longer waiting for a later round.
-    std::lock_guard lock(mutex_);
-    std::erase_if(pending_, [&](const Pending& p) { return taken.count(p.id) != 0; });
-  }
-  for (const auto& [grid, points] : grids) {
-    for (std::size_t first = 0; first < points.size(); first += kMaxArrayTasks) {
-      const auto last = std::min(points.size(), first + kMaxArrayTasks);
-      submit_batch({points.begin() + static_cast<std::ptrdiff_t>(first),
-                    points.begin() + static_cast<std::ptrdiff_t>(last)});
-    }
-  }
-  for (const auto& job : singles) submit_batch({job});
 }
 
 void SlurmExecutor::submit_batch(const std::vector<JobRecord>& jobs) {
@@ -468,8 +463,8 @@ void SlurmExecutor::submit_batch(const std::vector<JobRecord>& jobs) {
       }
       v1::RunSpec spec = parse_stored_spec(job.spec_json);
       if (spec.geometry().shape_case() == v1::Geometry::kMeshFile) {
-        check_mesh_file(spec);
-        const fs::path source = fs::path(runner_.meshes_dir()) / spec.geometry().mesh_file();
+        const fs::path source =
+            resolve_mesh_file(runner_.meshes_dir(), spec.geometry().mesh_file());
         const fs::path copy = dir / source.filename();
         fs::copy_file(source, copy, fs::copy_options::overwrite_existing);
         spec.mutable_geometry()->set_mesh_file(copy.string());
@@ -500,8 +495,9 @@ void SlurmExecutor::submit_batch(const std::vector<JobRecord>& jobs) {
          << "id=${ids[${SLURM_ARRAY_TASK_ID:-0}]}\n"
          << "dir=" << sh_quote(fs::path(config_.shared_dir) / "jobs") << "/$id\n"
          << "exec " << sh_quote(config_.solver) << " --spec \"$dir/spec.json\" --out \"$dir\""
-         << " --threads "
-         << config_.solver_threads
+         << " --threads " << config_.solver_threads << " --max-elements " << config_.max_elements
+         << " --max-end-time "
+         << end_time_text(config_.max_end_time_s)
          // One mesh cache for every node: a grid meshes its geometry once cluster-wide.
          << " --mesh-cache " << sh_quote(fs::path(config_.shared_dir) / "cache" / "meshes")
          << " >\"$dir/summary.json\" 2>\"$dir/solve.log\"\n";
@@ -514,7 +510,12 @@ void SlurmExecutor::submit_batch(const std::vector<JobRecord>& jobs) {
                  (batches / (ready.size() > 1 ? "%x-%A_%a.out" : "%x-%j.out")).string());
   if (!config_.partition.empty()) argv.push_back("--partition=" + config_.partition);
   if (!config_.account.empty()) argv.push_back("--account=" + config_.account);
-  if (!config_.time_limit.empty()) argv.push_back("--time=" + config_.time_limit);
+  if (!config_.time_limit.empty()) {
+    argv.push_back("--time=" + config_.time_limit);
+  } else if (config_.max_wall_time_s > 0) {
+    argv.push_back("--time=" +
+                   std::to_string(static_cast<long long>(std::ceil(config_.max_wall_time_s / 60))));
+  }
   if (ready.size() > 1) {
     std::string array = "--array=0-" + std::to_string(ready.size() - 1);
     if (config_.array_throttle > 0) array += "%" + std::to_string(config_.array_throttle);
@@ -535,14 +536,22 @@ void SlurmExecutor::submit_batch(const std::vector<JobRecord>& jobs) {
   for (std::size_t k = 0; k < ready.size(); ++k) {
     marks.emplace_back(ready[k].id, ready.size() == 1 ? base : base + "_" + std::to_string(k));
   }
-  catalogue_.mark_submitted(marks);
   {
+    // Tracked before the commit: a job on Slurm is watched (and finished) even if the commit
+    // fails; the commit is then retried every round (and the .ids file covers a crash).
     std::lock_guard lock(mutex_);
     for (std::size_t k = 0; k < ready.size(); ++k) {
       Tracked& t = jobs_[ready[k].id];
       t.slurm_id = marks[k].second;
       t.attempt = ready[k].attempt;
     }
+  }
+  try {
+    catalogue_.mark_submitted(marks);
+  } catch (const std::exception& e) {
+    log_error("slurm: recording Slurm job ", base, " failed (", e.what(), "); retrying");
+    std::lock_guard lock(mutex_);
+    unmarked_.insert(unmarked_.end(), marks.begin(), marks.end());
   }
   log_info("slurm: submitted ", ready.size(), " job(s) as ", base,
            ready.size() > 1 ? " (array)" : "", ", name ", name);
@@ -569,19 +578,21 @@ void SlurmExecutor::send_cancels() {
 SlurmExecutor::Observed SlurmExecutor::look_up_gone(const std::string& id,
                                                     const std::string& slurm_id) {
   Observed o;
-  if (const auto r = run_command({"scontrol", "-o", "show", "job", slurm_id}); r.status == 0) {
-    std::istringstream words(r.out);
-    for (std::string w; words >> w;) {
-      if (w.rfind("JobState=", 0) == 0) o.state = w.substr(9);
-      if (w.rfind("Reason=", 0) == 0) o.detail = w.substr(7);
+  if (slurm_id.rfind(kPurgedPrefix, 0) != 0) {  // a real Slurm id: ask Slurm first
+    if (const auto r = run_command({"scontrol", "-o", "show", "job", slurm_id}); r.status == 0) {
+      std::istringstream words(r.out);
+      for (std::string w; words >> w;) {
+        if (w.rfind("JobState=", 0) == 0) o.state = w.substr(9);
+        if (w.rfind("Reason=", 0) == 0) o.detail = w.substr(7);
+      }
+      if (!o.state.empty()) return o;
     }
-    if (!o.state.empty()) return o;
-  }
-  // With accounting (slurmdbd), sacct knows jobs long gone from slurmctld's memory.
-  if (const auto r = run_command({"sacct", "-n", "-P", "-X", "-j", slurm_id, "-o", "State"});
-      r.status == 0 && !first_line(r.out).empty()) {
-    o.state = first_line(r.out);
-    return o;
+    // With accounting (slurmdbd), sacct knows jobs long gone from slurmctld's memory.
+    if (const auto r = run_command({"sacct", "-n", "-P", "-X", "-j", slurm_id, "-o", "State"});
+        r.status == 0 && !first_line(r.out).empty()) {
+      o.state = first_line(r.out);
+      return o;
+    }
   }
   // Neither knows it (gone longer than MinJobAge and no accounting): the files tell.
   bool complete = false;
@@ -618,8 +629,30 @@ void SlurmExecutor::poll() {
                                        trim(line.substr(b + 1))};
   }
   for (const auto& [id, slurm_id] : watched) {
-    const auto it = listed.find(slurm_id);
-    on_state(id, it != listed.end() ? it->second : look_up_gone(id, slurm_id));
+    // One job's error (a catalogue write, an unreadable result) must not hold up the others:
+    // it is logged and that job is looked at again next round.
+    try {
+      const auto it = listed.find(slurm_id);
+      on_state(id, it != listed.end() ? it->second : look_up_gone(id, slurm_id));
+    } catch (const std::exception& e) {
+      log_error("slurm: job ", id, " (", slurm_id, "): ", e.what(), " (retrying next round)");
+    }
+  }
+}
+
+void SlurmExecutor::record_unmarked() {
+  std::vector<std::pair<std::string, std::string>> marks;
+  {
+    std::lock_guard lock(mutex_);
+    marks.swap(unmarked_);
+  }
+  if (marks.empty()) return;
+  try {
+    catalogue_.mark_submitted(marks);
+  } catch (...) {
+    std::lock_guard lock(mutex_);
+    unmarked_.insert(unmarked_.end(), marks.begin(), marks.end());
+    throw;
   }
 }
 
@@ -738,8 +771,19 @@ void SlurmExecutor::finish(const std::string& id, const SlurmOutcome& outcome,
     std::ofstream(fs::path(runner_.job_dir(id)) / "solve.log") << log_text;
   }
 
-  const bool ok = catalogue_.finish(id, record->attempt, state, why, error, result_path, progress,
-                                    stored ? &*stored : nullptr, now_us());
+  bool ok = false;
+  try {
+    ok = catalogue_.finish(id, record->attempt, state, why, error, result_path, progress,
+                           stored ? &*stored : nullptr, now_us());
+  } catch (const std::exception& e) {
+    // The outcome could not be recorded with its summary: a plain FAILED may still commit
+    // (if not, this throws and the poll loop tries again next round).
+    state = JobState::kFailed;
+    why = reason::kInternal;
+    error = "recording the outcome of Slurm job " + tracked.slurm_id + ": " + e.what();
+    log_error("job ", id, ": ", error);
+    ok = catalogue_.finish(id, record->attempt, state, why, error, "", progress, nullptr, now_us());
+  }
   if (ok) {
     log_info("job ", id, " ", to_string(state), " on Slurm (", tracked.slurm_id, ")",
              why.empty() ? "" : " " + why, error.empty() ? "" : ": " + error);

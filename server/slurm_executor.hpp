@@ -16,6 +16,7 @@
 #include <condition_variable>
 #include <map>
 #include <mutex>
+#include <set>
 #include <string>
 #include <thread>
 #include <vector>
@@ -34,7 +35,12 @@ struct SlurmConfig {
   std::vector<std::string> sbatch_args;  // appended verbatim
   std::string solver = "softshock-solve";
   int solver_threads = 1;  // --cpus-per-task and softshock-solve --threads
-  int array_throttle = 0;  // %N of array jobs; 0 = none
+  // The daemon's limits, applied on the compute nodes too: spec limits through softshock-solve,
+  // the wall limit as sbatch --time (whole minutes, rounded up) unless time_limit is set.
+  int max_elements = 2'000'000;
+  double max_end_time_s = 1e-5;
+  double max_wall_time_s = 0;  // 0 = none
+  int array_throttle = 0;      // %N of array jobs; 0 = none
   double poll_s = 1.0;
   std::size_t max_queued = 1000;  // not yet submitted + PENDING on Slurm
 };
@@ -46,9 +52,9 @@ struct SlurmOutcome {
   std::string reason;                  // for kTerminal FAILED: SLURM_<STATE>
 };
 // PENDING (and requeue/hold states) → waiting (QUEUED); RUNNING, COMPLETING, SUSPENDED… →
-// running; COMPLETED → SUCCEEDED (once the result is verified); CANCELLED → CANCELLED; FAILED,
-// TIMEOUT, OUT_OF_MEMORY, NODE_FAIL, BOOT_FAIL, DEADLINE, PREEMPTED → FAILED with reason
-// SLURM_<STATE>. Accepts sacct's "CANCELLED by 0" form.
+// running; COMPLETED → SUCCEEDED (once the result is verified); CANCELLED → CANCELLED; TIMEOUT
+// (the wall limit) → FAILED WALL_TIME_EXCEEDED; FAILED, OUT_OF_MEMORY, NODE_FAIL, BOOT_FAIL,
+// DEADLINE, PREEMPTED → FAILED with reason SLURM_<STATE>. Accepts sacct's "CANCELLED by 0" form.
 SlurmOutcome map_slurm_state(const std::string& slurm_state);
 
 // The job id of `sbatch --parsable` output ("123" or "123;cluster"); empty if there is none.
@@ -93,7 +99,13 @@ class SlurmExecutor final : public Executor {
   void loop();
   void adopt_submitted_before_crash();
   void submit_pending();
+  void collect_batches(const std::vector<Pending>& batch, std::size_t& next,
+                       std::vector<JobRecord>& singles,
+                       std::map<std::string, std::vector<JobRecord>>& grids,
+                       std::set<std::string>& taken);
+  void submit_batch_safely(const std::vector<JobRecord>& jobs);
   void submit_batch(const std::vector<JobRecord>& jobs);
+  void record_unmarked();  // retries mark_submitted for what sbatch took but was not recorded
   void send_cancels();
   void poll();
   void on_state(const std::string& id, const Observed& observed);
@@ -111,8 +123,9 @@ class SlurmExecutor final : public Executor {
 
   mutable std::mutex mutex_;
   std::condition_variable wake_;
-  std::vector<Pending> pending_;         // QUEUED, not yet handed to Slurm
-  std::map<std::string, Tracked> jobs_;  // handed to Slurm, not finished
+  std::vector<Pending> pending_;                               // QUEUED, not yet handed to Slurm
+  std::map<std::string, Tracked> jobs_;                        // handed to Slurm, not finished
+  std::vector<std::pair<std::string, std::string>> unmarked_;  // on Slurm, id not committed
   std::size_t reserved_ = 0;
   bool started_ = false, stopping_ = false, nudged_ = false;
   bool adopted_ = false;  // the start-up crash-window check has run

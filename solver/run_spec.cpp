@@ -9,6 +9,7 @@
 #include <sstream>
 
 #include "gmsh_mesher.hpp"
+#include "mesh_file_path.hpp"
 #include "rim_roughness.hpp"
 #include "ring_mesher.hpp"
 
@@ -190,6 +191,10 @@ void validate_spec(const v1::RunSpec& s, const SpecLimits& limits) {
       break;
     }
     case v1::Geometry::kMeshFile: {
+      if (!limits.mesh_root.empty()) {
+        (void)resolve_mesh_file(limits.mesh_root, g.mesh_file());  // the host's folder only
+        break;
+      }
       require(!g.mesh_file().empty(), "geometry.mesh_file", "must name a .msh file");
       std::error_code ec;
       require(std::filesystem::is_regular_file(g.mesh_file(), ec), "geometry.mesh_file",
@@ -304,7 +309,7 @@ std::string spec_to_json(const v1::RunSpec& spec) {
 
 namespace {
 
-Mesh mesh_geometry(const v1::Geometry& g) {
+Mesh mesh_geometry(const v1::Geometry& g, const SpecLimits& limits) {
   switch (g.shape_case()) {
     case v1::Geometry::kDisk: {
       Mesh mesh = g.mesher() == v1::CONCENTRIC_RINGS
@@ -321,12 +326,22 @@ Mesh mesh_geometry(const v1::Geometry& g) {
     case v1::Geometry::kRoundedSquare:
       return mesh_rounded_square(g.rounded_square().side(), g.rounded_square().corner_radius(),
                                  g.target_elements());
-    case v1::Geometry::kMeshFile:
+    case v1::Geometry::kMeshFile: {
+      const std::string path = limits.mesh_root.empty()
+                                   ? g.mesh_file()
+                                   : resolve_mesh_file(limits.mesh_root, g.mesh_file());
       try {
-        return read_gmsh_file(g.mesh_file());
+        return read_gmsh_file(path);
       } catch (const std::exception& e) {
-        throw SpecError("geometry.mesh_file", e.what());
+        // Name the file as the spec does: a host's own folders stay out of the message.
+        std::string message = e.what();
+        for (auto at = message.find(path); at != std::string::npos && path != g.mesh_file();
+             at = message.find(path, at + g.mesh_file().size())) {
+          message.replace(at, path.size(), g.mesh_file());
+        }
+        throw SpecError("geometry.mesh_file", message);
       }
+    }
     case v1::Geometry::SHAPE_NOT_SET:
       break;
   }
@@ -346,9 +361,10 @@ Problem make_problem(const v1::RunSpec& s, const SpecLimits& limits, const MeshC
   std::string warning;
   if (material) {
     p.mesh = cache->get_or_build(
-        mesh_cache_key(*material), *material, [&] { return mesh_geometry(g); }, &outcome, &warning);
+        mesh_cache_key(*material), *material, [&] { return mesh_geometry(g, limits); }, &outcome,
+        &warning);
   } else {
-    p.mesh = mesh_geometry(g);
+    p.mesh = mesh_geometry(g, limits);
   }
   switch (g.shape_case()) {
     case v1::Geometry::kDisk:

@@ -31,6 +31,9 @@ struct SpecLimits {
   int max_threads = 256;
   int max_frames = 2000;
   int64_t max_history_samples = 1'000'000;
+  // Non-empty: geometry.mesh_file is resolved inside this folder only (solver/mesh_file_path.hpp;
+  // softshockd's DATA/meshes/). Empty: the path as given (softshock-solve).
+  std::string mesh_root;
 };
 
 // Parses protobuf JSON (unknown fields rejected). Throws SpecError("spec", parser message).

@@ -1,4 +1,5 @@
-// softshock-solve --spec SPEC.json --out DIR [--threads N] [--mesh-cache DIR | --no-mesh-cache]
+// softshock-solve --spec SPEC.json --out DIR [--threads N] [--max-elements N] [--max-end-time S]
+//                 [--mesh-cache DIR | --no-mesh-cache]
 // Runs one spec, writes DIR/result.h5 + DIR/result.xdmf, prints the JSON summary on stdout.
 // Meshes come from a local cache when it has them (solver/mesh_cache.hpp); Gmsh is loaded only
 // when a mesh must be built. Frames are written by a writer thread while the solver steps on.
@@ -8,8 +9,10 @@
 
 #include <atomic>
 #include <chrono>
+#include <cmath>
 #include <csignal>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <iostream>
 #include <memory>
@@ -32,6 +35,7 @@ int usage(const char* msg) {
   if (msg) std::fprintf(stderr, "softshock-solve: %s\n", msg);
   std::fprintf(stderr,
                "usage: softshock-solve --spec SPEC.json --out DIR [--threads N] [--quiet]\n"
+               "                       [--max-elements N] [--max-end-time SECONDS]\n"
                "                       [--mesh-cache DIR | --no-mesh-cache]\n"
                "  SPEC.json  run spec (protobuf JSON of softshock.v1.RunSpec; {} = baseline)\n"
                "  DIR        output directory: result.h5, result.xdmf\n"
@@ -83,6 +87,7 @@ int main(int argc, char** argv) {
   int threads = 0;
   bool quiet = false;
   std::string mesh_cache_dir = softshock::default_mesh_cache_dir();
+  softshock::SpecLimits limits;  // a host's (softshockd on Slurm) limits, else the defaults
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     auto value = [&]() -> const char* { return i + 1 < argc ? argv[++i] : nullptr; };
@@ -109,6 +114,21 @@ int main(int argc, char** argv) {
       mesh_cache_dir = v;
     } else if (a == "--no-mesh-cache") {
       mesh_cache_dir.clear();
+    } else if (a == "--max-elements" || a == "--max-end-time") {
+      const char* v = value();
+      if (!v) return usage((a + " needs a number").c_str());
+      char* end = nullptr;
+      const double x = std::strtod(v, &end);
+      if (end == v || *end != '\0' || !(x > 0) || !std::isfinite(x)) {
+        return usage((a + ": expects a number > 0").c_str());
+      }
+      if (a == "--max-end-time") {
+        limits.max_end_time_s = x;
+      } else if (x > 2e9) {
+        return usage("--max-elements: at most 2000000000");
+      } else {
+        limits.max_elements = static_cast<int>(x);
+      }
     } else if (a == "--quiet") {
       quiet = true;
     } else if (a == "--help" || a == "-h") {
@@ -141,8 +161,8 @@ int main(int argc, char** argv) {
       throw softshock::SpecError("geometry.mesh_id",
                                  "names a mesh uploaded to softshockd; here use mesh_file");
     }
-    spec = softshock::normalize_spec(spec);
-    problem = softshock::make_problem(spec, {}, cache.get(), &meshing);
+    spec = softshock::normalize_spec(spec, limits);
+    problem = softshock::make_problem(spec, limits, cache.get(), &meshing);
     if (!meshing.warning.empty()) {
       std::fprintf(stderr, "softshock-solve: warning: mesh not cached: %s\n",
                    meshing.warning.c_str());

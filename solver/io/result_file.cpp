@@ -781,6 +781,38 @@ std::vector<double> ResultReader::mode_amplitudes(std::size_t& rows, std::size_t
   return values;
 }
 
+std::vector<std::size_t> ResultReader::dims(const std::string& dataset) const {
+  auto lock = lock_hdf5();
+  Hid ds = open_dataset(impl_->file.get(), dataset, impl_->path);
+  const auto d = dataset_dims(ds.get(), dataset, impl_->path);
+  return {d.begin(), d.end()};
+}
+
+std::vector<double> ResultReader::slice(const std::string& dataset, const Slice& s) const {
+  auto lock = lock_hdf5();
+  const std::string& path = impl_->path;
+  Hid ds = open_dataset(impl_->file.get(), dataset, path);
+  const std::vector<hsize_t> d = dataset_dims(ds.get(), dataset, path);
+  const hsize_t cols = d.size() > 1 ? d[1] : 1;
+  const bool inside =
+      s.stride >= 1 && s.col_count >= 1 && s.col_first + s.col_count <= cols &&
+      (s.rows == 0 || (s.first < d[0] && (s.rows - 1) <= (d[0] - 1 - s.first) / s.stride));
+  if (!inside) throw std::runtime_error("HDF5: slice outside " + dataset + " (" + path + ")");
+  std::vector<double> values(s.rows * s.col_count);
+  if (values.empty()) return values;
+  Hid file_space = checked(H5Dget_space(ds.get()), "get dataspace of " + dataset, path);
+  const hsize_t start[2] = {s.first, s.col_first}, stride[2] = {s.stride, 1};
+  const hsize_t count[2] = {s.rows, s.col_count};
+  checked(H5Sselect_hyperslab(file_space.get(), H5S_SELECT_SET, start, stride, count, nullptr),
+          "select in " + dataset, path);
+  const hsize_t memory_dims[1] = {values.size()};
+  Hid memory_space = checked(H5Screate_simple(1, memory_dims, nullptr), "create dataspace", path);
+  checked(H5Dread(ds.get(), H5T_NATIVE_DOUBLE, memory_space.get(), file_space.get(), H5P_DEFAULT,
+                  values.data()),
+          "read dataset " + dataset, path);
+  return values;
+}
+
 std::vector<double> ResultReader::field(std::size_t frame, const std::string& name) const {
   const auto known = std::find_if(kFields.begin(), kFields.end(),
                                   [&](const FieldSpec& f) { return name == f.name; });

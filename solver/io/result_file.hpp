@@ -66,6 +66,15 @@ class ResultReader {
   std::vector<double> mode_times() const;
   // Row-major T x (M+1) amplitudes.
   std::vector<double> mode_amplitudes(std::size_t& rows, std::size_t& cols) const;
+  // Reading only what an answer needs (bounded memory, a short hold of the HDF5 lock): the
+  // dimensions of a dataset ("/timeseries/abar", "/modes/amplitude"; 1 or 2 entries), and
+  // rows first, first + stride, ... (`rows` of them) x columns col_first.. (col_count of them;
+  // a 1-D dataset has one column), row-major. Throws std::runtime_error for a range outside.
+  std::vector<std::size_t> dims(const std::string& dataset) const;
+  struct Slice {
+    std::size_t first = 0, stride = 1, rows = 0, col_first = 0, col_count = 1;
+  };
+  std::vector<double> slice(const std::string& dataset, const Slice& s) const;
   // A field of frame k: "displacement" and "velocity" are N x 2 interleaved (whatever the
   // format_version: the stored z = 0 column of version 2 is dropped); "J",
   // "mean_stress", "radial_stress", "hoop_stress", "von_mises" are per element.

@@ -33,6 +33,7 @@ class ContainerEntrypointTest(unittest.TestCase):
         self.token_file = os.path.join(self.tmp, "softshock_token")  # the mounted secret
         with open(self.token_file, "w", encoding="utf-8") as f:
             f.write(self.token + "\n")
+        os.chmod(self.token_file, 0o600)  # softshockd refuses one other users may read
         self.data_dir = os.path.join(self.tmp, "volume")  # the named volume
         self.proc = None
 

@@ -186,7 +186,9 @@ class DaemonTestCase(unittest.TestCase):
     # -- helpers -------------------------------------------------------------------------------
     def write_json(self, obj, name: str = "spec.json") -> str:
         path = os.path.join(self.tmp, name)
-        with open(path, "w", encoding="utf-8") as f:
+        # 0600: softshockd refuses a token file other users may read.
+        with open(os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600), "w",
+                  encoding="utf-8") as f:
             if isinstance(obj, str):
                 f.write(obj)
             else:

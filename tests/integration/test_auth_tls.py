@@ -9,7 +9,7 @@ import grpc
 
 from softshock_harness import DaemonTestCase, SoftshockError, small_spec, state_name
 
-TOKEN = "s3cret-token-for-tests"
+TOKEN = "s3cret-token-for-tests-0123456789abcdef"  # softshockd wants >= 32 bytes
 
 
 class TokenTest(DaemonTestCase):

@@ -26,7 +26,9 @@ class RestartTest(DaemonTestCase):
         done = c.submit(small_spec(), labels={"phase": "before"}, wait=True)
         self.assertEqual(state_name(done), "SUCCEEDED")
         summary_before = c.summary(done.id)
-        result = c.get(done.id).result_path
+        result_path = c.get(done.id).result_path
+        self.assertEqual(result_path, f"jobs/{done.id}/result.h5", "relative to the data folder")
+        result = os.path.join(self.daemon.data_dir, result_path)
         self.assertTrue(os.path.isfile(result), result)
         digest_before = sha256(result)
         cli_summary_before = self.cli_ok("summary", done.id).stdout
@@ -54,7 +56,7 @@ class RestartTest(DaemonTestCase):
         self.assertEqual(state_name(final), "SUCCEEDED", f"{final.reason}: {final.error}")
         self.assertEqual(final.attempt, 2)
         self.assertAlmostEqual(final.progress.fraction, 1.0, places=6)
-        self.assertTrue(os.path.isfile(final.result_path))
+        self.assertTrue(os.path.isfile(os.path.join(self.daemon.data_dir, final.result_path)))
         self.assertEqual(state_name(c.wait(queued_small.id, timeout=60)), "SUCCEEDED")
 
         # The finished job is untouched.

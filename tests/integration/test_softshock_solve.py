@@ -14,13 +14,13 @@ import h5py
 SOLVE = os.environ["SOFTSHOCK_SOLVE"]
 
 
-def solve(spec, out, extra=(), env=None):
+def solve(spec, out, *extra, env=None):
     with tempfile.NamedTemporaryFile("w", suffix=".json", delete=False) as f:
         json.dump(spec, f)
     try:
         # No mesh cache unless a test asks for one: tests stay out of the user's ~/.cache.
-        return subprocess.run([SOLVE, "--spec", f.name, "--out", out,
-                               *(extra or ["--no-mesh-cache"])],
+        cache = [] if "--mesh-cache" in extra else ["--no-mesh-cache"]
+        return subprocess.run([SOLVE, "--spec", f.name, "--out", out, *extra, *cache],
                               capture_output=True, text=True, timeout=300,
                               env=None if env is None else {**os.environ, **env})
     finally:
@@ -100,14 +100,14 @@ class SoftshockSolve(unittest.TestCase):
         spec = {"geometry": {"target_elements": 600, "mesher": "FRONTAL_DELAUNAY"},
                 "run": {"end_time": 2e-8}}
         cache = os.path.join(self.tmp.name, "meshes")
-        first = solve(spec, self.out, ["--mesh-cache", cache])
+        first = solve(spec, self.out, "--mesh-cache", cache)
         self.assertEqual(first.returncode, 0, first.stderr)
         # A hit never loads the Gmsh module: pointed at nothing, the run still succeeds...
         no_gmsh = {"SOFTSHOCK_GMSH_MESHER": os.path.join(self.tmp.name, "no-such-module.so")}
-        second = solve(spec, self.out + "2", ["--mesh-cache", cache], env=no_gmsh)
+        second = solve(spec, self.out + "2", "--mesh-cache", cache, env=no_gmsh)
         self.assertEqual(second.returncode, 0, second.stderr)
         # ... while a run that must mesh says why it cannot.
-        third = solve(spec, self.out + "3", ["--no-mesh-cache"], env=no_gmsh)
+        third = solve(spec, self.out + "3", env=no_gmsh)
         self.assertEqual(third.returncode, 1)
         self.assertIn("SOFTSHOCK_GMSH_MESHER", third.stderr)
         a, b = json.loads(first.stdout), json.loads(second.stdout)
@@ -143,6 +143,13 @@ class SoftshockSolve(unittest.TestCase):
         r = solve({"run": {"cfl": 1.5}}, self.out)
         self.assertEqual(r.returncode, 2)
         self.assertIn("run.cfl", r.stderr)
+        # A host's limits (softshockd passes its own to jobs on Slurm).
+        r = solve({}, self.out, "--max-elements", "100")
+        self.assertEqual(r.returncode, 2)
+        self.assertIn("geometry.target_elements: must be between 20 and 100", r.stderr)
+        r = solve({"run": {"end_time": 2e-6}}, self.out, "--max-end-time", "1e-6")
+        self.assertEqual(r.returncode, 2)
+        self.assertIn("run.end_time", r.stderr)
 
     def test_inverting_run_exits_1_and_keeps_a_partial_file_marked_incomplete(self):
         # 100 kappa on a coarse mesh with no viscosity at CFL 0.95 crushes the rim at once.

@@ -98,30 +98,33 @@ TEST_F(MeshStoreTest, ListsByIdInPagesAndRemoves) {
 
 TEST_F(MeshStoreTest, MeshIdResolvesToTheUploadedFile) {
   MeshStore s = store();
+  SpecLimits limits;  // as the daemon's: mesh_file resolved under DATA/meshes/ only
+  limits.mesh_root = s.meshes_dir();
   const std::string id = s.add(square_msh(), "a.msh", 1).id();
   v1::RunSpec by_id;
   by_id.mutable_geometry()->set_mesh_id("meshes/" + id);
-  const CanonicalSpec c = daemon_canonical_spec(by_id, SpecLimits{}, s);
+  const CanonicalSpec c = daemon_canonical_spec(by_id, limits, s);
   EXPECT_EQ(c.spec.geometry().mesh_file(), "uploads/" + id + ".msh");
   EXPECT_TRUE(c.spec.geometry().mesh_id().empty());
   v1::RunSpec by_file;  // the same run named by its file: the same job for dedup
   by_file.mutable_geometry()->set_mesh_file("uploads/" + id + ".msh");
-  EXPECT_EQ(daemon_canonical_spec(by_file, SpecLimits{}, s).hash, c.hash);
+  EXPECT_EQ(daemon_canonical_spec(by_file, limits, s).hash, c.hash);
 
   v1::RunSpec both = by_id;
   both.mutable_geometry()->mutable_disk()->set_radius(1e-4);
-  EXPECT_EQ(rule_of([&] { daemon_canonical_spec(both, SpecLimits{}, s); }),
+  EXPECT_EQ(rule_of([&] { daemon_canonical_spec(both, limits, s); }),
             "geometry.mesh_id: cannot be combined with geometry.disk, rounded_square or mesh_file");
   v1::RunSpec unknown;
   unknown.mutable_geometry()->set_mesh_id(std::string(64, 'a'));
   EXPECT_EQ(rule_of([&] {
-              daemon_canonical_spec(unknown, SpecLimits{}, s);
+              daemon_canonical_spec(unknown, limits, s);
             }).rfind("geometry.mesh_id: no uploaded mesh", 0),
             0u);
-  v1::RunSpec missing;  // errors name the file as the client did, not by the server's path
+  v1::RunSpec missing;  // one text for absent and not allowed, never the server's path
   missing.mutable_geometry()->set_mesh_file("studies/none.msh");
-  const std::string rule = rule_of([&] { daemon_canonical_spec(missing, SpecLimits{}, s); });
-  EXPECT_NE(rule.find("'studies/none.msh'"), std::string::npos) << rule;
+  const std::string rule = rule_of([&] { daemon_canonical_spec(missing, limits, s); });
+  EXPECT_NE(rule.find("names no mesh file in the daemon's meshes folder"), std::string::npos)
+      << rule;
   EXPECT_EQ(rule.find(dir_.string()), std::string::npos) << rule;
 }
 

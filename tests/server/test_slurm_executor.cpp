@@ -21,7 +21,10 @@ TEST(SlurmStates, MapOntoOurs) {
   EXPECT_EQ(done.state, JobState::kSucceeded);
   const auto cancelled = map_slurm_state("CANCELLED by 0");  // sacct's form
   EXPECT_EQ(cancelled.state, JobState::kCancelled);
-  for (const char* s : {"FAILED", "TIMEOUT", "OUT_OF_MEMORY", "NODE_FAIL"}) {
+  const auto timeout = map_slurm_state("TIMEOUT");  // sbatch --time is the daemon's wall limit
+  EXPECT_EQ(timeout.state, JobState::kFailed);
+  EXPECT_EQ(timeout.reason, "WALL_TIME_EXCEEDED");
+  for (const char* s : {"FAILED", "OUT_OF_MEMORY", "NODE_FAIL"}) {
     const auto o = map_slurm_state(s);
     EXPECT_EQ(o.kind, K::kTerminal) << s;
     EXPECT_EQ(o.state, JobState::kFailed) << s;

@@ -1,0 +1,119 @@
+"""Crash test: SIGKILL softshockd at random moments while jobs and small grids run, restart it
+each time, then check what an operator relies on (docs/reliability.md):
+
+- every acknowledged job (its SubmitJob/SubmitGrid answer arrived) reaches a terminal state,
+  none is lost or stuck;
+- each SUCCEEDED result opens, is marked complete and matches its catalogued summary;
+- no job ran more times than its attempt counter says (attempt history rows <= attempt);
+- the catalogue passes PRAGMA integrity_check.
+
+SOFTSHOCK_CHAOS_KILLS (default 20) sets the number of kills, SOFTSHOCK_CHAOS_SEED the random
+seed; the figures (kills, acknowledged, lost, corrupt, restart-to-healthy) are printed.
+"""
+
+import json
+import os
+import random
+import sqlite3
+import statistics
+import time
+import unittest
+
+import h5py
+
+from softshock_harness import (DaemonTestCase, SoftshockError, TERMINAL, small_spec,
+                               state_name)
+
+KILLS = int(os.environ.get("SOFTSHOCK_CHAOS_KILLS", "20"))
+SEED = int(os.environ.get("SOFTSHOCK_CHAOS_SEED", "12"))
+
+
+class ChaosTest(DaemonTestCase):
+    workers = 2
+    # Enough attempts that most jobs finish despite the kills; the rest must end FAILED
+    # MAX_ATTEMPTS, which is terminal too.
+    daemon_args = ("--max-attempts", "6")
+
+    def test_sigkill_at_random_moments(self):
+        rng = random.Random(SEED)
+        acknowledged = set()
+        restarts = []
+        for _ in range(KILLS):
+            c = self.client(timeout=5)
+            try:
+                for _ in range(rng.randint(1, 3)):
+                    spec = small_spec(rng.choice([300, 600, 1200]), rng.choice([2e-8, 4e-8, 8e-8]))
+                    acknowledged.add(c.submit(spec).id)
+                if rng.random() < 0.3:
+                    grid = c.submit_grid(
+                        base_spec=small_spec(300, 2e-8),
+                        axes=[{"name": "pbar", "values": [0.5, rng.choice([0.7, 0.9])]}])
+                    for job in c.list(label=None):
+                        if job.grid_id == grid.id:
+                            acknowledged.add(job.id)
+            except SoftshockError as e:  # e.g. a full queue: not acknowledged, not counted
+                print(f"submission refused: {e}")
+            # The random moment: anywhere from just after the submissions to well into a run.
+            time.sleep(rng.uniform(0.0, 0.8))
+            self.daemon.kill9()
+            started = time.monotonic()
+            self.daemon.start()
+            restarts.append(time.monotonic() - started)
+
+        c = self.client(timeout=10)
+        deadline = time.monotonic() + 300
+        pending = set(acknowledged)
+        while pending and time.monotonic() < deadline:
+            pending = {j for j in pending if state_name(c.get(j)) not in TERMINAL}
+            time.sleep(0.2)
+        lost = [j for j in acknowledged if not self._exists(c, j)]
+        self.assertEqual(lost, [], "acknowledged jobs missing from the catalogue")
+        self.assertEqual(sorted(pending), [], "jobs stuck in a non-terminal state")
+
+        corrupt, states = [], {}
+        for job_id in sorted(acknowledged):
+            job = c.get(job_id)
+            key = state_name(job) + (f"/{job.reason}" if job.reason else "")
+            states[key] = states.get(key, 0) + 1
+            if state_name(job) != "SUCCEEDED":
+                continue
+            summary = c.summary(job_id)
+            try:
+                with h5py.File(os.path.join(self.data_dir, job.result_path), "r") as h5:
+                    stored = json.loads(h5.attrs["summary"])
+                    ok = (int(h5.attrs["complete"]) == 1 and
+                          stored["elements"] == int(summary["elements"]) and
+                          stored["steps"] == int(summary["steps"]))
+            except (OSError, KeyError, ValueError) as e:
+                print(f"{job_id}: {e}")
+                ok = False
+            if not ok:
+                corrupt.append(job_id)
+        self.assertEqual(corrupt, [], "SUCCEEDED jobs whose result does not match the summary")
+
+        self.assertEqual(self.daemon.stop(), 0)
+        db = sqlite3.connect(os.path.join(self.data_dir, "catalogue.sqlite"))
+        try:
+            self.assertEqual(db.execute("PRAGMA integrity_check").fetchone()[0], "ok")
+            over = db.execute(
+                "SELECT j.id, j.attempt, COUNT(a.attempt) FROM jobs j "
+                "LEFT JOIN job_attempts a ON a.job_id = j.id GROUP BY j.id "
+                "HAVING COUNT(a.attempt) > j.attempt").fetchall()
+        finally:
+            db.close()
+        self.assertEqual(over, [], "jobs with more runs than their attempt counter says")
+
+        print(f"\nchaos: kills={KILLS} seed={SEED} acknowledged={len(acknowledged)} lost=0 "
+              f"stuck=0 corrupt=0 states={states} restart-to-healthy median="
+              f"{statistics.median(restarts):.3f}s max={max(restarts):.3f}s")
+
+    def _exists(self, c, job_id):
+        try:
+            c.get(job_id)
+            return True
+        except SoftshockError:
+            return False
+
+
+if __name__ == "__main__":
+    unittest.main()
