@@ -55,6 +55,9 @@ class ChaosTest(DaemonTestCase):
                 print(f"submission refused: {e}")
             # The random moment: anywhere from just after the submissions to well into a run.
             time.sleep(rng.uniform(0.0, 0.8))
+            # It must still be alive: an abort of its own (a sanitizer report) is a finding.
+            self.assertIsNone(self.daemon.proc.poll(), "softshockd died by itself:\n" +
+                              self.daemon.log_tail())
             self.daemon.kill9()
             started = time.monotonic()
             self.daemon.start()
