@@ -4,29 +4,12 @@
 
 #include "server/log.hpp"
 #include "server/resource_name.hpp"
+#include "server/rpc_guard.hpp"
 
 namespace softshock::server {
 
 using grpc::Status;
 using grpc::StatusCode;
-
-namespace {
-
-template <typename F>
-Status guarded(const Authenticator& auth, const grpc::ServerContext* ctx, const char* rpc,
-               F&& body) {
-  if (Status s = auth.check(*ctx); !s.ok()) return s;
-  try {
-    return body();
-  } catch (const SpecError& e) {
-    return {StatusCode::INVALID_ARGUMENT, e.what()};
-  } catch (const std::exception& e) {
-    log_error(rpc, ": ", e.what());
-    return {StatusCode::INTERNAL, e.what()};
-  }
-}
-
-}  // namespace
 
 Status MeshService::UploadMesh(grpc::ServerContext* ctx,
                                grpc::ServerReader<v1::UploadMeshRequest>* reader, v1::Mesh* resp) {

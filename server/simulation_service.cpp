@@ -19,6 +19,7 @@
 #include "server/grid.hpp"
 #include "server/log.hpp"
 #include "server/resource_name.hpp"
+#include "server/rpc_guard.hpp"
 #include "server/spec_hash.hpp"
 #include "solver/io/result_file.hpp"
 
@@ -167,23 +168,6 @@ const std::map<std::string, FieldKind>& field_kinds() {
       {"velocity", {true, 2, "m/s"}},
   };
   return kinds;
-}
-
-// Runs a handler behind the token check; any exception becomes INTERNAL (and a log line) so a
-// bug in one request never takes the daemon down.
-template <typename F>
-Status guarded(const Authenticator& auth, const grpc::ServerContext* ctx, const char* rpc,
-               F&& body) {
-  if (Status s = auth.check(*ctx); !s.ok()) return s;
-  try {
-    return body();
-  } catch (const CatalogueError& e) {
-    log_error(rpc, ": catalogue: ", e.what());
-    return {StatusCode::UNAVAILABLE, std::string("catalogue: ") + e.what()};
-  } catch (const std::exception& e) {
-    log_error(rpc, ": ", e.what());
-    return {StatusCode::INTERNAL, e.what()};
-  }
 }
 
 }  // namespace
