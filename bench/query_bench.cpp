@@ -13,7 +13,7 @@
 #include <random>
 #include <string>
 
-#include "server/catalogue.hpp"
+#include "server/store/catalogue.hpp"
 
 namespace softshock::server {
 namespace {

@@ -14,16 +14,16 @@
 #include <thread>
 
 #include "grpc/health/v1/health.pb.h"
-#include "server/auth.hpp"
-#include "server/catalogue.hpp"
 #include "server/daemon_config.hpp"
-#include "server/job_events.hpp"
-#include "server/job_runner.hpp"
+#include "server/jobs/job_events.hpp"
+#include "server/jobs/job_runner.hpp"
+#include "server/jobs/scheduler.hpp"
+#include "server/jobs/slurm_executor.hpp"
 #include "server/log.hpp"
-#include "server/mesh_service.hpp"
-#include "server/scheduler.hpp"
-#include "server/simulation_service.hpp"
-#include "server/slurm_executor.hpp"
+#include "server/store/catalogue.hpp"
+#include "server/transport/auth.hpp"
+#include "server/transport/mesh_service.hpp"
+#include "server/transport/simulation_service.hpp"
 
 namespace softshock::server {
 

@@ -21,15 +21,15 @@
 #include <random>
 #include <string>
 
-#include "server/admission.hpp"
-#include "server/auth.hpp"
-#include "server/catalogue.hpp"
-#include "server/executor.hpp"
-#include "server/grid.hpp"
-#include "server/job_events.hpp"
-#include "server/job_runner.hpp"
-#include "server/mesh_store.hpp"
-#include "server/simulation_service.hpp"
+#include "server/jobs/admission.hpp"
+#include "server/jobs/executor.hpp"
+#include "server/jobs/grid.hpp"
+#include "server/jobs/job_events.hpp"
+#include "server/jobs/job_runner.hpp"
+#include "server/store/catalogue.hpp"
+#include "server/store/mesh_store.hpp"
+#include "server/transport/auth.hpp"
+#include "server/transport/simulation_service.hpp"
 #include "solver/resource_estimate.hpp"
 #include "solver/run_spec.hpp"
 

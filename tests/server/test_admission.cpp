@@ -9,11 +9,11 @@
 #include <filesystem>
 #include <random>
 
-#include "server/admission.hpp"
 #include "server/daemon.hpp"
 #include "server/daemon_config.hpp"
-#include "server/grid.hpp"
-#include "server/job_runner.hpp"
+#include "server/jobs/admission.hpp"
+#include "server/jobs/grid.hpp"
+#include "server/jobs/job_runner.hpp"
 #include "softshock/v1/service.grpc.pb.h"
 #include "solver/resource_estimate.hpp"
 #include "solver/run_spec.hpp"

@@ -6,7 +6,7 @@
 #include <filesystem>
 #include <random>
 
-#include "server/catalogue.hpp"
+#include "server/store/catalogue.hpp"
 
 namespace softshock::server {
 namespace {

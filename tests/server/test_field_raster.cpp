@@ -3,7 +3,7 @@
 
 #include <cmath>
 
-#include "server/field_raster.hpp"
+#include "server/transport/field_raster.hpp"
 
 namespace softshock::server {
 namespace {

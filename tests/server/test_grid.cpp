@@ -6,7 +6,7 @@
 #include <cmath>
 #include <set>
 
-#include "server/grid.hpp"
+#include "server/jobs/grid.hpp"
 
 namespace softshock::server {
 namespace {

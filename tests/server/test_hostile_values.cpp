@@ -13,11 +13,11 @@
 #include <limits>
 #include <random>
 
-#include "server/auth.hpp"
 #include "server/daemon.hpp"
 #include "server/daemon_config.hpp"
-#include "server/field_raster.hpp"
-#include "server/job_runner.hpp"
+#include "server/jobs/job_runner.hpp"
+#include "server/transport/auth.hpp"
+#include "server/transport/field_raster.hpp"
 #include "softshock/v1/service.grpc.pb.h"
 
 namespace softshock::server {

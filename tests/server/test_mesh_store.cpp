@@ -6,8 +6,8 @@
 #include <functional>
 #include <random>
 
-#include "server/mesh_store.hpp"
-#include "server/spec_hash.hpp"
+#include "server/store/mesh_store.hpp"
+#include "server/store/spec_hash.hpp"
 
 namespace softshock::server {
 namespace {

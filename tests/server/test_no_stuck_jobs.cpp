@@ -14,11 +14,11 @@
 #include <random>
 #include <thread>
 
-#include "server/catalogue.hpp"
-#include "server/grid.hpp"
-#include "server/job_events.hpp"
-#include "server/job_runner.hpp"
-#include "server/slurm_executor.hpp"
+#include "server/jobs/grid.hpp"
+#include "server/jobs/job_events.hpp"
+#include "server/jobs/job_runner.hpp"
+#include "server/jobs/slurm_executor.hpp"
+#include "server/store/catalogue.hpp"
 
 namespace softshock::server {
 namespace {

@@ -2,7 +2,7 @@
 // errors that name the field and the rule.
 #include <gtest/gtest.h>
 
-#include "server/resource_name.hpp"
+#include "server/transport/resource_name.hpp"
 
 namespace softshock::server {
 namespace {

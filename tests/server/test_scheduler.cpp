@@ -5,7 +5,7 @@
 #include <chrono>
 #include <thread>
 
-#include "server/scheduler.hpp"
+#include "server/jobs/scheduler.hpp"
 
 namespace softshock::server {
 namespace {

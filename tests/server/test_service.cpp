@@ -9,9 +9,9 @@
 #include <fstream>
 #include <random>
 
-#include "server/catalogue.hpp"
 #include "server/daemon.hpp"
-#include "server/job_runner.hpp"
+#include "server/jobs/job_runner.hpp"
+#include "server/store/catalogue.hpp"
 #include "softshock/v1/service.grpc.pb.h"
 
 namespace softshock::server {

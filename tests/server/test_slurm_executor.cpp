@@ -4,8 +4,8 @@
 
 #include <cmath>
 
-#include "server/job_runner.hpp"
-#include "server/slurm_executor.hpp"
+#include "server/jobs/job_runner.hpp"
+#include "server/jobs/slurm_executor.hpp"
 
 using namespace softshock;
 using namespace softshock::server;

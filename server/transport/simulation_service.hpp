@@ -8,14 +8,14 @@
 #include <random>
 #include <string>
 
-#include "server/admission.hpp"
-#include "server/auth.hpp"
-#include "server/catalogue.hpp"
-#include "server/executor.hpp"
-#include "server/job_events.hpp"
-#include "server/job_runner.hpp"
-#include "server/mesh_store.hpp"
-#include "server/scheduler.hpp"
+#include "server/jobs/admission.hpp"
+#include "server/jobs/executor.hpp"
+#include "server/jobs/job_events.hpp"
+#include "server/jobs/job_runner.hpp"
+#include "server/jobs/scheduler.hpp"
+#include "server/store/catalogue.hpp"
+#include "server/store/mesh_store.hpp"
+#include "server/transport/auth.hpp"
 #include "softshock/v1/service.grpc.pb.h"
 #include "solver/run_spec.hpp"
 

@@ -1,4 +1,4 @@
-#include "server/spec_hash.hpp"
+#include "server/store/spec_hash.hpp"
 
 #include <array>
 #include <cstdint>

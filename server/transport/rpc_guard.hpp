@@ -9,9 +9,9 @@
 #include <exception>
 #include <string>
 
-#include "server/auth.hpp"
-#include "server/catalogue.hpp"
 #include "server/log.hpp"
+#include "server/store/catalogue.hpp"
+#include "server/transport/auth.hpp"
 #include "solver/run_spec.hpp"
 
 namespace softshock::server {

@@ -9,10 +9,10 @@
 #include <memory>
 #include <string>
 
-#include "server/admission.hpp"
-#include "server/catalogue.hpp"
-#include "server/job_events.hpp"
-#include "server/scheduler.hpp"
+#include "server/jobs/admission.hpp"
+#include "server/jobs/job_events.hpp"
+#include "server/jobs/scheduler.hpp"
+#include "server/store/catalogue.hpp"
 #include "solver/run_spec.hpp"
 #include "solver/simulation.hpp"
 

@@ -1,4 +1,4 @@
-#include "server/job_events.hpp"
+#include "server/jobs/job_events.hpp"
 
 namespace softshock::server {
 

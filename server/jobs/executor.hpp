@@ -12,7 +12,7 @@
 #include <string>
 #include <vector>
 
-#include "server/scheduler.hpp"
+#include "server/jobs/scheduler.hpp"
 
 namespace softshock::server {
 

@@ -1,4 +1,4 @@
-#include "server/mesh_store.hpp"
+#include "server/store/mesh_store.hpp"
 
 #include <google/protobuf/util/json_util.h>
 #include <google/protobuf/util/time_util.h>
@@ -10,8 +10,8 @@
 #include <sstream>
 #include <stdexcept>
 
-#include "server/job_runner.hpp"
-#include "server/spec_hash.hpp"
+#include "server/jobs/job_runner.hpp"
+#include "server/store/spec_hash.hpp"
 #include "solver/gmsh_mesher.hpp"
 #include "solver/io/durable_file.hpp"
 

@@ -1,4 +1,4 @@
-#include "server/catalogue.hpp"
+#include "server/store/catalogue.hpp"
 
 #include <sqlite3.h>
 

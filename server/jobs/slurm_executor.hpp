@@ -21,10 +21,10 @@
 #include <thread>
 #include <vector>
 
-#include "server/catalogue.hpp"
-#include "server/executor.hpp"
-#include "server/job_events.hpp"
-#include "server/job_runner.hpp"
+#include "server/jobs/executor.hpp"
+#include "server/jobs/job_events.hpp"
+#include "server/jobs/job_runner.hpp"
+#include "server/store/catalogue.hpp"
 
 namespace softshock::server {
 

@@ -1,4 +1,4 @@
-#include "server/process_io.hpp"
+#include "server/jobs/process_io.hpp"
 
 #include <fcntl.h>
 #include <poll.h>

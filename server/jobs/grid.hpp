@@ -7,7 +7,7 @@
 #include <string>
 #include <vector>
 
-#include "server/catalogue.hpp"
+#include "server/store/catalogue.hpp"
 #include "softshock/v1/service.pb.h"
 #include "solver/run_spec.hpp"
 

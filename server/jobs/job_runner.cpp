@@ -1,4 +1,4 @@
-#include "server/job_runner.hpp"
+#include "server/jobs/job_runner.hpp"
 
 #include <google/protobuf/struct.pb.h>
 #include <google/protobuf/util/json_util.h>

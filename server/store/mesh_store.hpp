@@ -10,7 +10,7 @@
 #include <string>
 #include <vector>
 
-#include "server/grid.hpp"
+#include "server/jobs/grid.hpp"
 #include "softshock/v1/service.pb.h"
 #include "solver/run_spec.hpp"
 

@@ -1,4 +1,4 @@
-#include "server/field_raster.hpp"
+#include "server/transport/field_raster.hpp"
 
 #include <algorithm>
 #include <cmath>

@@ -1,4 +1,4 @@
-#include "server/slurm_executor.hpp"
+#include "server/jobs/slurm_executor.hpp"
 
 #include <pwd.h>
 #include <unistd.h>
@@ -14,8 +14,8 @@
 #include <set>
 #include <sstream>
 
+#include "server/jobs/process_io.hpp"
 #include "server/log.hpp"
-#include "server/process_io.hpp"
 #include "solver/io/result_file.hpp"
 #include "solver/mesh_file_path.hpp"
 

@@ -13,7 +13,7 @@
 #include <optional>
 #include <string>
 
-#include "server/catalogue.hpp"
+#include "server/store/catalogue.hpp"
 
 namespace softshock::server {
 

@@ -1,4 +1,4 @@
-#include "server/auth.hpp"
+#include "server/transport/auth.hpp"
 
 #include <fcntl.h>
 #include <grpcpp/server_context.h>

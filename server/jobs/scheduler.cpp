@@ -1,4 +1,4 @@
-#include "server/scheduler.hpp"
+#include "server/jobs/scheduler.hpp"
 
 #include <algorithm>
 #include <exception>

@@ -2,9 +2,9 @@
 // same bearer-token authentication as SimulationService.
 #pragma once
 
-#include "server/auth.hpp"
-#include "server/catalogue.hpp"
-#include "server/mesh_store.hpp"
+#include "server/store/catalogue.hpp"
+#include "server/store/mesh_store.hpp"
+#include "server/transport/auth.hpp"
 #include "softshock/v1/service.grpc.pb.h"
 
 namespace softshock::server {

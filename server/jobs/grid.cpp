@@ -1,4 +1,4 @@
-#include "server/grid.hpp"
+#include "server/jobs/grid.hpp"
 
 #include <algorithm>
 #include <cctype>
@@ -8,7 +8,7 @@
 #include <set>
 #include <sstream>
 
-#include "server/spec_hash.hpp"
+#include "server/store/spec_hash.hpp"
 
 namespace softshock::server {
 namespace {

@@ -1,10 +1,10 @@
-#include "server/mesh_service.hpp"
+#include "server/transport/mesh_service.hpp"
 
 #include <grpcpp/grpcpp.h>
 
 #include "server/log.hpp"
-#include "server/resource_name.hpp"
-#include "server/rpc_guard.hpp"
+#include "server/transport/resource_name.hpp"
+#include "server/transport/rpc_guard.hpp"
 
 namespace softshock::server {
 

@@ -1,4 +1,4 @@
-#include "server/admission.hpp"
+#include "server/jobs/admission.hpp"
 
 #include <cmath>
 #include <cstdio>

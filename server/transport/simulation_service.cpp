@@ -1,4 +1,4 @@
-#include "server/simulation_service.hpp"
+#include "server/transport/simulation_service.hpp"
 
 #include <google/protobuf/util/json_util.h>
 #include <google/protobuf/util/time_util.h>
@@ -15,12 +15,12 @@
 #include <thread>
 #include <tuple>
 
-#include "server/field_raster.hpp"
-#include "server/grid.hpp"
+#include "server/jobs/grid.hpp"
 #include "server/log.hpp"
-#include "server/resource_name.hpp"
-#include "server/rpc_guard.hpp"
-#include "server/spec_hash.hpp"
+#include "server/store/spec_hash.hpp"
+#include "server/transport/field_raster.hpp"
+#include "server/transport/resource_name.hpp"
+#include "server/transport/rpc_guard.hpp"
 #include "solver/io/result_file.hpp"
 
 namespace softshock::server {
