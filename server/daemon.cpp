@@ -17,6 +17,7 @@
 #include "server/daemon_config.hpp"
 #include "server/jobs/job_events.hpp"
 #include "server/jobs/job_runner.hpp"
+#include "server/jobs/mesh_process.hpp"
 #include "server/jobs/scheduler.hpp"
 #include "server/jobs/slurm_executor.hpp"
 #include "server/log.hpp"
@@ -144,6 +145,12 @@ Daemon::Daemon(DaemonConfig config) : impl_(std::make_unique<Impl>()) {
   rc.admission.max_steps = config.max_steps;
   rc.admission.max_memory_bytes = config.max_job_memory_bytes;
   rc.admission.max_disk_bytes = config.max_job_disk_bytes;
+  rc.mesher = find_mesher();
+  if (rc.mesher.empty() && config.executor == "local") {
+    log_warning(
+        "softshock-mesh is not installed beside softshockd: Gmsh meshing runs in the daemon, "
+        "where a cancel or the wall-time limit waits until it ends");
+  }
   d.runner = std::make_unique<JobRunner>(rc, *d.catalogue, d.events);
   d.recover();
 
