@@ -48,7 +48,8 @@ void read_report(const std::string& json, MeshingReport* report) {
   google::protobuf::Struct s;
   if (!google::protobuf::util::JsonStringToMessage(last_line(json), &s).ok()) return;
   const auto& f = s.fields();
-  if (auto it = f.find("meshing_time_s"); it != f.end()) report->seconds = it->second.number_value();
+  if (auto it = f.find("meshing_time_s"); it != f.end())
+    report->seconds = it->second.number_value();
   if (auto it = f.find("warning"); it != f.end()) report->warning = it->second.string_value();
   if (auto it = f.find("mesh_cache"); it != f.end()) {
     const std::string& cache = it->second.string_value();
@@ -72,10 +73,10 @@ struct HandoverFiles {
 
 std::optional<Mesh> mesh_in_child(const MesherCommand& command, const v1::RunSpec& spec,
                                   const std::string& work_dir,
-                                  const std::function<bool()>& should_stop,
-                                  MeshingReport* report) {
+                                  const std::function<bool()>& should_stop, MeshingReport* report) {
   // Names ending in .tmp: JobRunner::remove_stale_files() clears what a killed daemon left.
-  HandoverFiles files{fs::path(work_dir) / "meshing.spec.tmp", fs::path(work_dir) / "meshing.mesh.tmp"};
+  HandoverFiles files{fs::path(work_dir) / "meshing.spec.tmp",
+                      fs::path(work_dir) / "meshing.mesh.tmp"};
   {
     std::ofstream out(files.spec, std::ios::trunc);
     out << spec_to_json(spec);

@@ -58,14 +58,13 @@ constexpr Column<Record> late_figure(const char* name) {
 // count: an integer of any width, stored as INTEGER.
 template <typename Record, auto... Path>
 constexpr Column<Record> count(const char* name) {
-  return {name,
-          [](Stmt& s, int i, const Record& r) {
-            s.bind(i, static_cast<int64_t>(field<Path...>(r)));
-          },
-          [](const Stmt& s, int c, Record& r) {
-            auto& f = field<Path...>(r);
-            f = static_cast<std::remove_reference_t<decltype(f)>>(s.i64(c));
-          }};
+  return {
+      name,
+      [](Stmt& s, int i, const Record& r) { s.bind(i, static_cast<int64_t>(field<Path...>(r))); },
+      [](const Stmt& s, int c, Record& r) {
+        auto& f = field<Path...>(r);
+        f = static_cast<std::remove_reference_t<decltype(f)>>(s.i64(c));
+      }};
 }
 template <typename Record, auto... Path>
 constexpr Column<Record> text(const char* name) {
@@ -136,11 +135,21 @@ void append_names(std::string& out, const Columns& columns, const std::string& t
 
 // The summary's query figures as numbers: the 'NaN' text of bind_figure() becomes NULL (not
 // known) in the nullable jobs columns, so it never compares as text in a filter.
-constexpr const char* kQueryFigures[] = {
-    "pbar",     "tbar_pulse",      "mubar",              "gamma",
-    "c1",       "c2",              "max_abar_first_cycle", "max_abar",
-    "energy_injected", "energy_after_pulse", "dominant_mode_end", "shock_at_center",
-    "wall_time", "elements",       "steps"};
+constexpr const char* kQueryFigures[] = {"pbar",
+                                         "tbar_pulse",
+                                         "mubar",
+                                         "gamma",
+                                         "c1",
+                                         "c2",
+                                         "max_abar_first_cycle",
+                                         "max_abar",
+                                         "energy_injected",
+                                         "energy_after_pulse",
+                                         "dominant_mode_end",
+                                         "shock_at_center",
+                                         "wall_time",
+                                         "elements",
+                                         "steps"};
 
 }  // namespace
 

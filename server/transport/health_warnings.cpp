@@ -22,7 +22,8 @@ class HealthWarningsInterceptor : public gx::Interceptor {
   explicit HealthWarningsInterceptor(const std::vector<std::string>& warnings)
       : warnings_(warnings) {}
   void Intercept(gx::InterceptorBatchMethods* methods) override {
-    if (methods->QueryInterceptionHookPoint(gx::InterceptionHookPoints::PRE_SEND_INITIAL_METADATA)) {
+    if (methods->QueryInterceptionHookPoint(
+            gx::InterceptionHookPoints::PRE_SEND_INITIAL_METADATA)) {
       if (auto* metadata = methods->GetSendInitialMetadata()) {
         for (const auto& w : warnings_) metadata->emplace(kHealthWarningKey, w);
       }
@@ -41,7 +42,8 @@ class HealthWarningsFactory : public gx::ServerInterceptorFactoryInterface {
   }
   gx::Interceptor* CreateServerInterceptor(gx::ServerRpcInfo* info) override {
     const char* method = info->method();
-    if (method == nullptr || std::string_view(method).substr(0, kHealthMethods.size()) != kHealthMethods) {
+    if (method == nullptr ||
+        std::string_view(method).substr(0, kHealthMethods.size()) != kHealthMethods) {
       return nullptr;
     }
     return new HealthWarningsInterceptor(warnings_);

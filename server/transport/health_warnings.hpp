@@ -5,11 +5,11 @@
 // Python client's health_warnings() show it.
 #pragma once
 
+#include <grpcpp/support/server_interceptor.h>
+
 #include <memory>
 #include <string>
 #include <vector>
-
-#include <grpcpp/support/server_interceptor.h>
 
 namespace softshock::server {
 

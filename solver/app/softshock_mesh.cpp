@@ -35,15 +35,16 @@ namespace {
 
 int usage(const char* msg) {
   if (msg) std::fprintf(stderr, "softshock-mesh: %s\n", msg);
-  std::fprintf(stderr,
-               "usage: softshock-mesh --spec SPEC.json --out FILE [--mesh-cache DIR]\n"
-               "                      [--mesh-cache-bytes N] [--max-elements N] [--max-end-time S]\n"
-               "                      [--mesh-root DIR]\n"
-               "  the limits and the mesh root are the host's (softshockd's); the spec is\n"
-               "  validated against them\n"
-               "  writes the spec's mesh (before rim roughness) to FILE in the mesh cache's\n"
-               "  entry format; softshockd runs it so that meshing can be cancelled\n"
-               "exit codes: 0 done, 2 invalid spec or usage, 1 failure\n");
+  std::fprintf(
+      stderr,
+      "usage: softshock-mesh --spec SPEC.json --out FILE [--mesh-cache DIR]\n"
+      "                      [--mesh-cache-bytes N] [--max-elements N] [--max-end-time S]\n"
+      "                      [--mesh-root DIR]\n"
+      "  the limits and the mesh root are the host's (softshockd's); the spec is\n"
+      "  validated against them\n"
+      "  writes the spec's mesh (before rim roughness) to FILE in the mesh cache's\n"
+      "  entry format; softshockd runs it so that meshing can be cancelled\n"
+      "exit codes: 0 done, 2 invalid spec or usage, 1 failure\n");
   return 2;
 }
 

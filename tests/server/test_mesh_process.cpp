@@ -48,7 +48,8 @@ TEST_F(MeshProcess, TheChildsMeshIsTheInProcessMeshAndIsCached) {
   ASSERT_FALSE(command_.executable.empty()) << "softshock-mesh not built";
   const v1::RunSpec spec = gmsh_disk(400);
   MeshingReport report;
-  const auto mesh = mesh_in_child(command_, spec, work_dir(), [] { return false; }, &report);
+  const auto mesh = mesh_in_child(
+      command_, spec, work_dir(), [] { return false; }, &report);
   ASSERT_TRUE(mesh.has_value());
   EXPECT_EQ(report.cache, MeshCacheOutcome::kMiss);
   EXPECT_GT(report.seconds, 0);
