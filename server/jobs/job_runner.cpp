@@ -224,9 +224,11 @@ std::optional<Mesh> JobRunner::mesh_job(const std::string& id, const v1::RunSpec
   if (const auto material = mesh_cache_ ? mesh_key_material(geometry) : std::nullopt) {
     const auto started = std::chrono::steady_clock::now();
     if (auto cached = mesh_cache_->load(mesh_cache_key(*material), *material)) {
-      report->cache = MeshCacheOutcome::kHit;
-      report->seconds =
-          std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
+      if (report) {
+        report->cache = MeshCacheOutcome::kHit;
+        report->seconds =
+            std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
+      }
       return cached;
     }
   }
