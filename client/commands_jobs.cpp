@@ -1,4 +1,5 @@
 // submit, status, watch, list, cancel, delete, summary, health.
+#include <google/protobuf/struct.pb.h>
 #include <google/protobuf/util/json_util.h>
 
 #include <algorithm>
@@ -360,16 +361,32 @@ int cmd_health(const GlobalOptions& g, const ParsedArgs& a) {
   grpc::health::v1::HealthCheckRequest request;
   request.set_service(a.get("service").value_or(""));
   grpc::health::v1::HealthCheckResponse response;
-  conn.unary(
-      [&](grpc::ClientContext& ctx) { return conn.health().Check(&ctx, request, &response); });
+  // What the daemon warns about its set-up (e.g. a token without TLS): one metadata entry each.
+  std::vector<std::string> warnings;
+  conn.unary([&](grpc::ClientContext& ctx) {
+    grpc::Status s = conn.health().Check(&ctx, request, &response);
+    warnings.clear();
+    const auto [first, last] = ctx.GetServerInitialMetadata().equal_range("softshock-warning");
+    for (auto it = first; it != last; ++it)
+      warnings.emplace_back(it->second.data(), it->second.size());
+    return s;
+  });
   const std::string status =
       grpc::health::v1::HealthCheckResponse_ServingStatus_Name(response.status());
   if (g.json) {
-    std::printf("%s\n", to_json(response).c_str());
+    // HealthCheckResponse's own JSON ({"status": ...}) plus "warnings" when there are any.
+    google::protobuf::Struct out;
+    (*out.mutable_fields())["status"].set_string_value(status);
+    if (!warnings.empty()) {
+      auto* list = (*out.mutable_fields())["warnings"].mutable_list_value();
+      for (const auto& w : warnings) list->add_values()->set_string_value(w);
+    }
+    std::printf("%s\n", to_json(out).c_str());
   } else {
     KeyValues kv;
     kv.add("server", conn.target());
     kv.add("status", status);
+    for (const auto& w : warnings) kv.add("warning", w);
     kv.print(stdout);
   }
   if (response.status() != grpc::health::v1::HealthCheckResponse::SERVING) {

@@ -1,7 +1,8 @@
 # Debian packages through CPack: `cpack -G DEB` in a build folder configured with
 # -DCMAKE_INSTALL_PREFIX=/usr (scripts/test-packages shows the whole route).
 #   softshock-client  the `softshock` CLI and the Python package softshock_client (+ stubs)
-#   softshockd        the daemon, softshock-solve and a systemd unit (full builds only)
+#   softshockd        the daemon, softshock-mesh (its Gmsh meshing process), softshock-solve
+#                     and a systemd unit (full builds only)
 # Library dependencies come from dpkg-shlibdeps; the Python modules the client imports are
 # declared by hand (they are not linked).
 set(CPACK_GENERATOR DEB)

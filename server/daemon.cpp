@@ -17,11 +17,13 @@
 #include "server/daemon_config.hpp"
 #include "server/jobs/job_events.hpp"
 #include "server/jobs/job_runner.hpp"
+#include "server/jobs/mesh_process.hpp"
 #include "server/jobs/scheduler.hpp"
 #include "server/jobs/slurm_executor.hpp"
 #include "server/log.hpp"
 #include "server/store/catalogue.hpp"
 #include "server/transport/auth.hpp"
+#include "server/transport/health_warnings.hpp"
 #include "server/transport/mesh_service.hpp"
 #include "server/transport/simulation_service.hpp"
 
@@ -70,6 +72,8 @@ struct Daemon::Impl {
   std::unique_ptr<grpc::Server> server;
   int port = 0;
   bool stopped = false;
+  // What the start-up log warns about the set-up; health answers repeat it.
+  std::vector<std::string> setup_warnings;
 
   ~Impl() {
     if (lock_fd >= 0) ::close(lock_fd);
@@ -119,7 +123,10 @@ Daemon::Daemon(DaemonConfig config) : impl_(std::make_unique<Impl>()) {
   }
   // Also here, not only in the loader: an embedding program must not expose an open daemon.
   if (auto problem = exposure_problem(config)) throw std::invalid_argument(*problem);
-  if (auto warning = transport_warning(config)) log_warning(*warning);
+  if (auto warning = transport_warning(config)) {
+    log_warning(*warning);
+    d.setup_warnings.push_back(*warning);
+  }
   fs::create_directories(config.data_dir);
   config.data_dir = fs::canonical(config.data_dir).string();
   fs::create_directories(fs::path(config.data_dir) / "jobs");
@@ -144,6 +151,13 @@ Daemon::Daemon(DaemonConfig config) : impl_(std::make_unique<Impl>()) {
   rc.admission.max_steps = config.max_steps;
   rc.admission.max_memory_bytes = config.max_job_memory_bytes;
   rc.admission.max_disk_bytes = config.max_job_disk_bytes;
+  rc.mesher = find_mesher();
+  if (rc.mesher.empty() && config.executor == "local") {
+    d.setup_warnings.push_back(
+        "softshock-mesh is not installed beside softshockd: Gmsh meshing runs in the daemon, "
+        "where a cancel or the wall-time limit waits until it ends");
+    log_warning(d.setup_warnings.back());
+  }
   d.runner = std::make_unique<JobRunner>(rc, *d.catalogue, d.events);
   d.recover();
 
@@ -239,6 +253,11 @@ void Daemon::start() {
   builder.AddListeningPort(d.config.listen, creds, &d.port);
   builder.RegisterService(d.service.get());
   builder.RegisterService(d.mesh_service.get());
+  if (!d.setup_warnings.empty()) {
+    std::vector<std::unique_ptr<grpc::experimental::ServerInterceptorFactoryInterface>> creators;
+    creators.push_back(health_warnings(d.setup_warnings));
+    builder.experimental().SetInterceptorCreators(std::move(creators));
+  }
   builder.SetMaxReceiveMessageSize(d.config.max_receive_bytes);
   // Bounded threads, so a flood of calls cannot grow the daemon without limit: a call that
   // finds every thread busy is answered RESOURCE_EXHAUSTED by gRPC.

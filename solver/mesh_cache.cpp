@@ -98,6 +98,18 @@ std::string serialize(const std::string& material, const Mesh& mesh) {
 }
 
 template <typename T>
+std::uint64_t bytes_of(const std::vector<T>& v) {
+  return v.size() * sizeof(T);
+}
+
+// serialize(material, mesh).size() without building it.
+std::uint64_t entry_bytes(const Mesh& mesh, const std::string& material) {
+  return sizeof(Header) + material.size() + bytes_of(mesh.x) + bytes_of(mesh.y) +
+         bytes_of(mesh.triangles) + bytes_of(mesh.boundary_edges) + bytes_of(mesh.boundary_nodes) +
+         sizeof(std::uint64_t);
+}
+
+template <typename T>
 bool take(std::string_view& in, std::vector<T>& v, std::uint64_t count) {
   if (count > in.size() / sizeof(T)) return false;
   v.resize(count);
@@ -222,47 +234,12 @@ std::string MeshCache::entry_path(const std::string& key) const {
 
 std::optional<Mesh> MeshCache::load(const std::string& key, const std::string& material,
                                     bool* unusable) const {
-  if (unusable) *unusable = false;
-  bool exists = false;
-  const std::string bytes = read_file(entry_path(key), &exists);
-  if (!exists) return std::nullopt;
-  auto mesh = deserialize(bytes, material);
-  if (!mesh && unusable) *unusable = true;
-  return mesh;
+  return read_mesh_entry(entry_path(key), material, unusable);
 }
 
 void MeshCache::store(const std::string& key, const std::string& material, const Mesh& mesh) const {
-  const std::string bytes = serialize(material, mesh);
-  if (bytes.size() > max_bytes_) return;  // would evict everything, itself included
-  // Unique among the writers of a shared folder: pids repeat across the nodes of a cluster.
-  static const std::string writer_id = [] {
-    std::random_device random;
-    return std::to_string(::getpid()) + "." + hex64((std::uint64_t{random()} << 32) | random());
-  }();
-  static std::atomic<unsigned> counter{0};
-  const std::string final_path = entry_path(key);
-  const std::string tmp =
-      final_path + kTmpMarker + writer_id + "." + std::to_string(counter.fetch_add(1));
-  const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0644);
-  if (fd < 0) throw std::runtime_error("mesh cache: cannot create " + tmp + ": " + strerror(errno));
-  std::size_t done = 0;
-  while (done < bytes.size()) {
-    const ssize_t n = ::write(fd, bytes.data() + done, bytes.size() - done);
-    if (n < 0 && errno == EINTR) continue;
-    if (n < 0) {
-      const int saved = errno;
-      ::close(fd);
-      ::unlink(tmp.c_str());
-      throw std::runtime_error("mesh cache: cannot write " + tmp + ": " + strerror(saved));
-    }
-    done += static_cast<std::size_t>(n);
-  }
-  // No fsync: a cache entry is not precious, and one torn by a power loss fails its checksum.
-  if (::close(fd) != 0 || std::rename(tmp.c_str(), final_path.c_str()) != 0) {
-    const int saved = errno;
-    ::unlink(tmp.c_str());
-    throw std::runtime_error("mesh cache: cannot store " + final_path + ": " + strerror(saved));
-  }
+  if (entry_bytes(mesh, material) > max_bytes_) return;  // would evict everything, itself included
+  write_mesh_entry(entry_path(key), material, mesh);
   evict();
 }
 
@@ -330,22 +307,81 @@ Mesh MeshCache::get_or_build(const std::string& key, const std::string& material
   return mesh;
 }
 
+std::optional<Mesh> read_mesh_entry(const std::string& path, const std::string& material,
+                                    bool* unusable) {
+  if (unusable) *unusable = false;
+  bool exists = false;
+  const std::string bytes = read_file(path, &exists);
+  if (!exists) return std::nullopt;
+  auto mesh = deserialize(bytes, material);
+  if (!mesh && unusable) *unusable = true;
+  return mesh;
+}
+
+void write_mesh_entry(const std::string& path, const std::string& material, const Mesh& mesh) {
+  const std::string bytes = serialize(material, mesh);
+  // Unique among the writers of a shared folder: pids repeat across the nodes of a cluster.
+  static const std::string writer_id = [] {
+    std::random_device random;
+    return std::to_string(::getpid()) + "." + hex64((std::uint64_t{random()} << 32) | random());
+  }();
+  static std::atomic<unsigned> counter{0};
+  const std::string tmp =
+      path + kTmpMarker + writer_id + "." + std::to_string(counter.fetch_add(1));
+  const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0644);
+  if (fd < 0) throw std::runtime_error("mesh cache: cannot create " + tmp + ": " + strerror(errno));
+  std::size_t done = 0;
+  while (done < bytes.size()) {
+    const ssize_t n = ::write(fd, bytes.data() + done, bytes.size() - done);
+    if (n < 0 && errno == EINTR) continue;
+    if (n < 0) {
+      const int saved = errno;
+      ::close(fd);
+      ::unlink(tmp.c_str());
+      throw std::runtime_error("mesh cache: cannot write " + tmp + ": " + strerror(saved));
+    }
+    done += static_cast<std::size_t>(n);
+  }
+  // No fsync: a cache entry is not precious, and one torn by a power loss fails its checksum.
+  if (::close(fd) != 0 || std::rename(tmp.c_str(), path.c_str()) != 0) {
+    const int saved = errno;
+    ::unlink(tmp.c_str());
+    throw std::runtime_error("mesh cache: cannot store " + path + ": " + strerror(saved));
+  }
+}
+
+namespace {
+
+// Every field, in a fixed order: equal messages give equal bytes.
+std::optional<std::string> deterministic_bytes(const v1::Geometry& geometry) {
+  std::string serialized;
+  {
+    google::protobuf::io::StringOutputStream stream(&serialized);
+    google::protobuf::io::CodedOutputStream coded(&stream);
+    coded.SetSerializationDeterministic(true);  // map order etc. fixed
+    if (!geometry.SerializeToCodedStream(&coded)) return std::nullopt;
+  }  // the streams' destructors trim `serialized` to what was written
+  return serialized;
+}
+
+}  // namespace
+
 std::optional<std::string> mesh_key_material(const v1::Geometry& geometry) {
   // A mesh file is read, not meshed, and its content may change under the same name.
   if (geometry.shape_case() != v1::Geometry::kDisk &&
       geometry.shape_case() != v1::Geometry::kRoundedSquare) {
     return std::nullopt;
   }
-  std::string serialized;
-  {
-    google::protobuf::io::StringOutputStream stream(&serialized);
-    google::protobuf::io::CodedOutputStream coded(&stream);
-    coded.SetSerializationDeterministic(true);  // map order etc. fixed: equal messages, equal bytes
-    if (!geometry.SerializeToCodedStream(&coded)) return std::nullopt;
-  }
+  const auto serialized = deterministic_bytes(geometry);
+  if (!serialized) return std::nullopt;
   return "softshock-mesh format=" + std::to_string(kFormatVersion) +
          " mesher=" + std::to_string(kMesherRevision) + " gmsh=" + gmsh_version() + "\n" +
-         serialized;
+         *serialized;
+}
+
+std::string mesh_entry_material(const v1::Geometry& geometry) {
+  if (auto material = mesh_key_material(geometry)) return *material;
+  return "softshock-mesh uncached\n" + deterministic_bytes(geometry).value_or("");
 }
 
 std::string mesh_cache_key(const std::string& material) {

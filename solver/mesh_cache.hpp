@@ -65,8 +65,19 @@ class MeshCache {
 // added later are covered). nullopt for geometries that are not cached: mesh_file (read, not
 // meshed; its content may change under the same name).
 std::optional<std::string> mesh_key_material(const v1::Geometry& geometry);
+// Key material for any geometry, mesh_file included: mesh_key_material's where there is one.
+// What a mesh handed from one process to another in an entry file is checked against.
+std::string mesh_entry_material(const v1::Geometry& geometry);
 // 32 hex digits (128 bits) hashed from the material: the entry's file name.
 std::string mesh_cache_key(const std::string& material);
+
+// One entry as a file of its own, in the cache's format (key material, arrays, checksum):
+// how softshock-mesh hands a mesh to softshockd. write_mesh_entry() writes a temporary file
+// beside `path` and renames it (throws std::runtime_error); read_mesh_entry() is nullopt when
+// the file is absent or unusable (*unusable set for the latter).
+void write_mesh_entry(const std::string& path, const std::string& material, const Mesh& mesh);
+std::optional<Mesh> read_mesh_entry(const std::string& path, const std::string& material,
+                                    bool* unusable = nullptr);
 
 // softshock-solve's cache folder: $SOFTSHOCK_MESH_CACHE, else $XDG_CACHE_HOME/softshock/meshes,
 // else $HOME/.cache/softshock/meshes; empty when none applies or SOFTSHOCK_MESH_CACHE is "off".

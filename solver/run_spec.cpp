@@ -351,21 +351,53 @@ Mesh mesh_geometry(const v1::Geometry& g, const SpecLimits& limits) {
 
 }  // namespace
 
-Problem make_problem(const v1::RunSpec& s, const SpecLimits& limits, const MeshCache* cache,
-                     MeshingReport* report) {
+bool meshes_with_gmsh(const v1::Geometry& g) {
+  switch (g.shape_case()) {
+    case v1::Geometry::kDisk:
+      return g.mesher() != v1::CONCENTRIC_RINGS;
+    case v1::Geometry::kRoundedSquare:
+    case v1::Geometry::kMeshFile:
+      return true;
+    default:
+      return false;
+  }
+}
+
+namespace {
+
+void require_element_limit(const Mesh& mesh, const SpecLimits& limits) {
+  require(static_cast<int64_t>(mesh.element_count()) <= limits.max_elements,
+          "geometry.target_elements",
+          "the mesh has " + std::to_string(mesh.element_count()) + " elements, more than " +
+              std::to_string(limits.max_elements));
+}
+
+}  // namespace
+
+Mesh smooth_mesh(const v1::Geometry& g, const SpecLimits& limits, const MeshCache* cache,
+                 MeshingReport* report) {
   const auto started = std::chrono::steady_clock::now();
-  Problem p;
-  const auto& g = s.geometry();
   const auto material = cache ? mesh_key_material(g) : std::nullopt;
   MeshCacheOutcome outcome = MeshCacheOutcome::kNotUsed;
   std::string warning;
-  if (material) {
-    p.mesh = cache->get_or_build(
-        mesh_cache_key(*material), *material, [&] { return mesh_geometry(g, limits); }, &outcome,
-        &warning);
-  } else {
-    p.mesh = mesh_geometry(g, limits);
+  Mesh mesh = material ? cache->get_or_build(
+                             mesh_cache_key(*material), *material,
+                             [&] { return mesh_geometry(g, limits); }, &outcome, &warning)
+                       : mesh_geometry(g, limits);
+  if (report) {
+    report->seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
+    report->cache = outcome;
+    report->warning = warning;
   }
+  require_element_limit(mesh, limits);
+  return mesh;
+}
+
+Problem make_problem_with_mesh(const v1::RunSpec& s, Mesh mesh, const SpecLimits& limits) {
+  Problem p;
+  p.mesh = std::move(mesh);
+  const auto& g = s.geometry();
   switch (g.shape_case()) {
     case v1::Geometry::kDisk:
       p.origin = {0.0, 0.0};
@@ -387,18 +419,14 @@ Problem make_problem(const v1::RunSpec& s, const SpecLimits& limits, const MeshC
     apply_rim_roughness(p.mesh, p.origin, p.reference_radius_m,
                         {r.amplitude(), r.min_mode(), r.max_mode(), r.seed()});
   }
-  if (report) {
-    report->seconds =
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
-    report->cache = outcome;
-    report->warning = warning;
-  }
-  require(static_cast<int64_t>(p.mesh.element_count()) <= limits.max_elements,
-          "geometry.target_elements",
-          "the mesh has " + std::to_string(p.mesh.element_count()) + " elements, more than " +
-              std::to_string(limits.max_elements));
+  require_element_limit(p.mesh, limits);
   set_parameters(s, p);
   return p;
+}
+
+Problem make_problem(const v1::RunSpec& s, const SpecLimits& limits, const MeshCache* cache,
+                     MeshingReport* report) {
+  return make_problem_with_mesh(s, smooth_mesh(s.geometry(), limits, cache, report), limits);
 }
 
 NondimensionalGroups spec_groups(const v1::RunSpec& s) {

@@ -62,8 +62,21 @@ struct MeshingReport {
 // Meshes the geometry (Gmsh; through `cache` when given) and fills the Problem. Expects a
 // normalized spec. Throws SpecError("geometry.mesh_file", ...) if a mesh file cannot be read,
 // and SpecError("geometry.target_elements", ...) if the mesh exceeds limits.max_elements.
+// The same as smooth_mesh() followed by make_problem_with_mesh().
 Problem make_problem(const v1::RunSpec& spec, const SpecLimits& limits = {},
                      const MeshCache* cache = nullptr, MeshingReport* report = nullptr);
+
+// Whether meshing the geometry runs Gmsh (a frontal-Delaunay disk, a rounded square, a mesh
+// file): the kind that may take minutes and cannot be interrupted from inside the process.
+bool meshes_with_gmsh(const v1::Geometry& geometry);
+// make_problem's first half: the geometry's mesh before rim roughness (what the cache keeps),
+// with the same errors. A host that meshes elsewhere (softshockd's softshock-mesh child)
+// calls this there and make_problem_with_mesh() itself.
+Mesh smooth_mesh(const v1::Geometry& geometry, const SpecLimits& limits = {},
+                 const MeshCache* cache = nullptr, MeshingReport* report = nullptr);
+// make_problem's second half: rim roughness on `mesh` (smooth_mesh's), the element limit, and
+// the model parameters.
+Problem make_problem_with_mesh(const v1::RunSpec& spec, Mesh mesh, const SpecLimits& limits = {});
 // The nondimensional groups of a normalized spec without meshing: R0 is the disk's radius or
 // half the rounded square's side. A mesh_file's R0 is known only once meshed: its tbar_pulse
 // and time_scale_s are NaN.

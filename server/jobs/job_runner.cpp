@@ -13,6 +13,7 @@
 #include <limits>
 #include <optional>
 
+#include "server/jobs/mesh_process.hpp"
 #include "server/log.hpp"
 #include "solver/io/async_result_writer.hpp"
 #include "solver/io/result_file.hpp"
@@ -212,6 +213,39 @@ JobRunner::JobRunner(RunnerConfig config, Catalogue& catalogue, JobEvents& event
   }
 }
 
+std::optional<Mesh> JobRunner::mesh_job(const std::string& id, const v1::RunSpec& spec,
+                                        const std::function<bool()>& should_stop,
+                                        MeshingReport* report) {
+  const auto& geometry = spec.geometry();
+  if (config_.mesher.empty() || !meshes_with_gmsh(geometry)) {
+    // Ring meshes and strips take milliseconds, with checks the solver owns: no child needed.
+    return smooth_mesh(geometry, config_.limits, mesh_cache_.get(), report);
+  }
+  if (const auto material = mesh_cache_ ? mesh_key_material(geometry) : std::nullopt) {
+    const auto started = std::chrono::steady_clock::now();
+    if (auto cached = mesh_cache_->load(mesh_cache_key(*material), *material)) {
+      if (report) {
+        report->cache = MeshCacheOutcome::kHit;
+        report->seconds =
+            std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
+      }
+      return cached;
+    }
+  }
+  MesherCommand command;
+  command.executable = config_.mesher;
+  command.limits = config_.limits;
+  if (mesh_cache_) {
+    command.cache_dir = mesh_cache_->dir();
+    command.cache_bytes = mesh_cache_->max_bytes();
+  }
+  const std::string dir = job_dir(id);
+  std::error_code ec;
+  fs::create_directories(dir, ec);
+  if (ec) throw std::runtime_error("cannot create " + dir + ": " + ec.message());
+  return mesh_in_child(command, spec, dir, should_stop, report);
+}
+
 std::string JobRunner::mesh_cache_dir() const {
   return (fs::path(config_.data_dir) / "cache" / "meshes").string();
 }
@@ -237,7 +271,9 @@ void JobRunner::remove_stale_files(const std::string& id) const {
   if (!fs::exists(dir, ec)) return;
   for (const auto& entry : fs::directory_iterator(dir, ec)) {
     const std::string name = entry.path().filename().string();
-    if (name.size() >= 4 && name.compare(name.size() - 4, 4, ".tmp") == 0) {
+    // result.h5.tmp, meshing.mesh.tmp, and a killed writer's meshing.mesh.tmp.<writer>.<n>
+    if ((name.size() >= 4 && name.compare(name.size() - 4, 4, ".tmp") == 0) ||
+        name.find(".tmp.") != std::string::npos) {
       fs::remove(entry.path(), ec);
     }
   }
@@ -344,25 +380,41 @@ void JobRunner::run_job(const std::string& id, CancelToken& cancel) {
   SolverOptions options;
   MeshingReport meshing;
   ResourceEstimate estimate;
+  // Meshing in a child (Gmsh) is stopped by a cancel or the wall-time limit within a poll
+  // interval; in-process meshing is not, and the stop takes effect once it returns.
+  auto stop_meshing = [&] {
+    if (config_.max_wall_time_s > 0 &&
+        std::chrono::duration<double>(Clock::now() - started).count() > config_.max_wall_time_s) {
+      cancel.request(StopReason::kWallTime);
+    }
+    return cancel.requested();
+  };
   try {
     // limits.mesh_root confines geometry.mesh_file to DATA/meshes/ (solver/mesh_file_path.hpp).
     spec = normalize_spec(parse_stored_spec(job->spec_json), config_.limits);
-    problem = make_problem(spec, config_.limits, mesh_cache_.get(), &meshing);
-    if (!meshing.warning.empty()) log_warning("job ", id, ": mesh not cached: ", meshing.warning);
-    // Again with the real mesh (a mesh_file is first known here) and today's limits.
-    estimate = estimate_resources(spec, static_cast<double>(problem.mesh.element_count()),
-                                  mesh_area(problem.mesh));
-    check_admission(spec, estimate, config_.admission);
-    options = make_options(spec);
-    options.threads = std::max(1, config_.solver_threads);
+    auto mesh = mesh_job(id, spec, stop_meshing, &meshing);
+    if (mesh) {
+      problem = make_problem_with_mesh(spec, std::move(*mesh), config_.limits);
+      if (!meshing.warning.empty()) log_warning("job ", id, ": mesh not cached: ", meshing.warning);
+      // Again with the real mesh (a mesh_file is first known here) and today's limits.
+      estimate = estimate_resources(spec, static_cast<double>(problem.mesh.element_count()),
+                                    mesh_area(problem.mesh));
+      check_admission(spec, estimate, config_.admission);
+      options = make_options(spec);
+      options.threads = std::max(1, config_.solver_threads);
+    }
   } catch (const SpecError& e) {
     finish(JobState::kFailed, reason::kInvalidSpec, e.what(), "", nullptr);
+    return;
+  } catch (const MeshingFailed& e) {
+    finish(JobState::kFailed, e.invalid_spec() ? reason::kInvalidSpec : reason::kInternal,
+           e.invalid_spec() ? e.what() : std::string("meshing: ") + e.what(), "", nullptr);
     return;
   } catch (const std::exception& e) {
     finish(JobState::kFailed, reason::kInternal, std::string("setup: ") + e.what(), "", nullptr);
     return;
   }
-  // Meshing cannot be interrupted; a stop requested meanwhile takes effect here.
+  // A stop requested while meshing (the child was killed, or in-process meshing returned).
   if (cancel.requested()) {
     switch (cancel.reason()) {
       case StopReason::kShutdown:

@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <string>
 
 #include "server/jobs/admission.hpp"
@@ -32,6 +33,9 @@ struct RunnerConfig {
   std::function<double(const std::string&)> free_bytes;
   double progress_interval_s = 0.1;                         // how often live progress is published
   std::uint64_t mesh_cache_bytes = std::uint64_t{1} << 30;  // DATA/cache/meshes; 0 = no cache
+  // softshock-mesh, which Gmsh meshing runs in so that cancel and the wall-time limit can stop
+  // it (jobs/mesh_process.hpp); empty = mesh in this process, uninterruptibly.
+  std::string mesher;
 };
 
 class JobRunner {
@@ -60,6 +64,11 @@ class JobRunner {
 
  private:
   void run_job(const std::string& id, CancelToken& cancel);
+  // The smooth mesh of a normalized spec: from the cache, in this process, or in a
+  // softshock-mesh child that should_stop() can kill (then nullopt). Throws what make_problem
+  // throws, and MeshingFailed.
+  std::optional<Mesh> mesh_job(const std::string& id, const v1::RunSpec& spec,
+                               const std::function<bool()>& should_stop, MeshingReport* report);
   double free_bytes() const;
   void fail_running(const std::string& id, const std::string& error);
 

@@ -19,7 +19,18 @@ namespace softshock::server {
 
 namespace fs = std::filesystem;
 
-CommandResult run_command(const std::vector<std::string>& argv) {
+namespace {
+
+void append_capped(std::string& sink, const char* data, std::size_t n) {
+  sink.append(data, n);
+  if (sink.size() > kMaxCommandOutput) sink.erase(0, sink.size() - kMaxCommandOutput);
+}
+
+}  // namespace
+
+CommandResult run_command(const std::vector<std::string>& argv,
+                          const std::function<bool()>& should_stop,
+                          std::chrono::milliseconds poll_interval) {
   CommandResult r;
   int out_pipe[2], err_pipe[2];
   if (::pipe2(out_pipe, O_CLOEXEC) != 0) return r;
@@ -61,8 +72,14 @@ CommandResult run_command(const std::vector<std::string>& argv) {
   std::string* sinks[2] = {&r.out, &r.err};
   int open_fds = 2;
   char buf[4096];
+  const int timeout_ms = should_stop ? static_cast<int>(poll_interval.count()) : -1;
   while (open_fds > 0) {
-    if (::poll(fds, 2, -1) < 0) {
+    if (should_stop && !r.stopped && should_stop()) {
+      ::kill(pid, SIGKILL);  // the pipes close with it; the loop then ends
+      r.stopped = true;
+    }
+    const int ready = ::poll(fds, 2, timeout_ms);
+    if (ready < 0) {
       if (errno == EINTR) continue;
       break;
     }
@@ -70,7 +87,7 @@ CommandResult run_command(const std::vector<std::string>& argv) {
       if (fds[k].fd < 0 || fds[k].revents == 0) continue;
       const ssize_t n = ::read(fds[k].fd, buf, sizeof buf);
       if (n > 0) {
-        sinks[k]->append(buf, static_cast<std::size_t>(n));
+        append_capped(*sinks[k], buf, static_cast<std::size_t>(n));
       } else if (n == 0 || errno != EINTR) {
         ::close(fds[k].fd);
         fds[k].fd = -1;
@@ -78,10 +95,14 @@ CommandResult run_command(const std::vector<std::string>& argv) {
       }
     }
   }
+  for (const auto& f : fds) {
+    if (f.fd >= 0) ::close(f.fd);
+  }
   int status = 0;
   while (::waitpid(pid, &status, 0) < 0 && errno == EINTR) {
   }
   r.status = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  r.signal = WIFSIGNALED(status) ? WTERMSIG(status) : 0;
   return r;
 }
 

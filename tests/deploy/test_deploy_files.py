@@ -101,7 +101,8 @@ class DockerfileTest(unittest.TestCase):
         copies = self.runtime.all("COPY")
         self.assertEqual([c.args for c in copies], ["--from=build /out/ /usr/local/bin/"])
         build_runs = " ".join(i.args for i in self.build.all("RUN"))
-        for binary in ("server/softshockd", "client/softshock", "solver/softshock-solve"):
+        for binary in ("server/softshockd", "client/softshock", "solver/softshock-solve",
+                       "solver/softshock-mesh"):
             self.assertIn(f"/build/{binary}", build_runs)
 
     def test_non_root_user_volume_and_port(self):

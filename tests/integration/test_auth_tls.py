@@ -53,6 +53,9 @@ class TokenTest(DaemonTestCase):
 
         # Health stays open without a token, as load balancers and kubelet probes send none.
         self.assertEqual(self.cli("health").returncode, 0)
+        # On loopback a token without TLS is fine: nothing to warn about.
+        self.assertEqual(self.client().health_warnings(), [])
+        self.assertNotIn("warning", self.cli_ok("health").stdout)
 
     def test_mesh_service_needs_the_token(self):
         msh = self.write_json("$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$Nodes\n3\n1 0 0 0\n"
@@ -72,6 +75,29 @@ class TokenTest(DaemonTestCase):
         empty = self.write_json("", "empty")
         p = self.cli("--token-file", empty, "list")
         self.assertEqual(p.returncode, 2)
+
+
+class TokenOffLoopbackTest(DaemonTestCase):
+    """A token served without TLS on every interface: the start-up warning is also in every
+    health answer, for whoever checks the daemon later."""
+    start_daemon = False
+
+    def setUp(self):
+        super().setUp()
+        token_file = self.write_json(TOKEN, "token")
+        self.daemon.extra_args += ["--token-file", token_file, "--listen", "0.0.0.0:0"]
+        self.start(health_token=TOKEN)
+
+    def test_health_carries_the_tls_warning(self):
+        warnings = self.client().health_warnings()
+        self.assertEqual(len(warnings), 1, warnings)
+        self.assertIn("serving 0.0.0.0:0 with a bearer token but without TLS", warnings[0])
+        out = self.cli_ok("health").stdout
+        self.assertIn("status:", out)
+        self.assertIn("warning:", out)
+        self.assertIn("without TLS", out)
+        self.assertEqual(self.cli_json("health"), {"status": "SERVING", "warnings": warnings})
+        self.assertIn("without TLS", self.daemon.log_tail())  # still logged at start-up too
 
 
 def make_certificates(directory):

@@ -9,6 +9,7 @@
 #include <filesystem>
 #include <random>
 
+#include "daemon_fixture.hpp"
 #include "server/daemon.hpp"
 #include "server/daemon_config.hpp"
 #include "server/jobs/admission.hpp"
@@ -65,25 +66,10 @@ TEST(ResourceEstimate, ScalesAsExpected) {
   EXPECT_LE(fine.steps / e.steps, 4.0);
 }
 
-class AdmissionService : public ::testing::Test {
+class AdmissionService : public testing::DaemonFixture {
  protected:
-  void SetUp() override {
-    dir_ = fs::temp_directory_path() /
-           ("softshock-admission-" + std::to_string(std::random_device{}()));
-    DaemonConfig c;
-    c.data_dir = (dir_ / "data").string();
-    c.listen = "127.0.0.1:0";
-    c.workers = 1;
-    daemon_ = std::make_unique<Daemon>(c);
-    daemon_->start();
-    stub_ = v1::SimulationService::NewStub(grpc::CreateChannel(
-        "127.0.0.1:" + std::to_string(daemon_->port()), grpc::InsecureChannelCredentials()));
-  }
-  void TearDown() override {
-    stub_.reset();
-    daemon_.reset();
-    fs::remove_all(dir_);
-  }
+  AdmissionService() : DaemonFixture("admission") {}
+  void SetUp() override { start(); }
 
   grpc::Status submit(const std::string& spec_json, std::string* field = nullptr) {
     v1::SubmitJobRequest req;
@@ -107,10 +93,6 @@ class AdmissionService : public ::testing::Test {
     }
     return s;
   }
-
-  fs::path dir_;
-  std::unique_ptr<Daemon> daemon_;
-  std::unique_ptr<v1::SimulationService::Stub> stub_;
 };
 
 TEST_F(AdmissionService, RefusesEndlessHungryAndHugeSpecsNamingFigureLimitAndFields) {

@@ -9,6 +9,7 @@
 #include <random>
 #include <thread>
 
+#include "daemon_fixture.hpp"
 #include "server/daemon.hpp"
 #include "softshock/v1/service.grpc.pb.h"
 #include "solver/io/result_file.hpp"
@@ -19,35 +20,14 @@ namespace {
 namespace fs = std::filesystem;
 using namespace std::chrono_literals;
 
-class BoundedReads : public ::testing::Test {
+class BoundedReads : public testing::DaemonFixture {
  protected:
-  void SetUp() override {
-    dir_ =
-        fs::temp_directory_path() / ("softshock-bounded-" + std::to_string(std::random_device{}()));
-  }
-  void TearDown() override {
-    stub_.reset();
-    if (daemon_) daemon_->stop();
-    daemon_.reset();
-    fs::remove_all(dir_);
-  }
+  BoundedReads() : DaemonFixture("bounded") {}
 
   void start(int max_concurrent_rpcs = 256) {
-    DaemonConfig c;
-    c.data_dir = (dir_ / "data").string();
-    c.listen = "127.0.0.1:0";
-    c.workers = 1;
+    DaemonConfig c = config();
     c.max_concurrent_rpcs = max_concurrent_rpcs;
-    daemon_ = std::make_unique<Daemon>(c);
-    daemon_->start();
-    stub_ = v1::SimulationService::NewStub(grpc::CreateChannel(
-        "127.0.0.1:" + std::to_string(daemon_->port()), grpc::InsecureChannelCredentials()));
-  }
-
-  std::unique_ptr<grpc::ClientContext> ctx() {
-    auto c = std::make_unique<grpc::ClientContext>();
-    c->set_deadline(std::chrono::system_clock::now() + 20s);
-    return c;
+    DaemonFixture::start(c);
   }
 
   v1::Job submit(const v1::RunSpec& spec) {
@@ -58,22 +38,6 @@ class BoundedReads : public ::testing::Test {
     EXPECT_TRUE(s.ok()) << s.error_message();
     return job;
   }
-
-  v1::Job wait_terminal(const std::string& id) {
-    const auto deadline = std::chrono::steady_clock::now() + 60s;
-    v1::Job job;
-    for (;;) {
-      v1::GetJobRequest get;
-      get.set_id(id);
-      EXPECT_TRUE(stub_->GetJob(ctx().get(), get, &job).ok());
-      if (job.state() >= v1::SUCCEEDED || std::chrono::steady_clock::now() > deadline) return job;
-      std::this_thread::sleep_for(50ms);
-    }
-  }
-
-  fs::path dir_;
-  std::unique_ptr<Daemon> daemon_;
-  std::unique_ptr<v1::SimulationService::Stub> stub_;
 };
 
 TEST_F(BoundedReads, SeriesAndModesAreSlicesOfTheStoredData) {

@@ -3,7 +3,9 @@
 // QueryJobs' SQL.
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <filesystem>
+#include <optional>
 #include <random>
 
 #include "server/store/catalogue.hpp"
@@ -57,6 +59,138 @@ TEST_F(CatalogueTest, MigrationsAreIdempotentAndDataSurvivesReopen) {
     EXPECT_EQ(a->labels.at("study"), "s1");
     EXPECT_EQ(a->spec_hash, "hash-a");
   }
+}
+
+// Every field of a StoredSummary, each with its own value (NaN where a figure may be NaN).
+StoredSummary distinct_summary() {
+  StoredSummary s;
+  RunSummary& r = s.summary;
+  r.elements = 101;
+  r.nodes = 102;
+  r.steps = 103;
+  r.wall_time_s = 1.04;
+  r.end_time_s = NAN;
+  r.groups = {1.06, 1.07, 1.08, 1.09, 1.10, 1.11, 1.12};
+  r.energy_injected_J_per_m = 1.13;
+  r.energy_after_pulse_J_per_m = 1.14;
+  r.max_abar_first_cycle = 1.15;
+  r.max_abar = NAN;
+  r.abar_end = 1.17;
+  r.max_abar_filtered_first_cycle = 1.18;
+  r.max_abar_filtered = 1.19;
+  r.abar_filtered_end = 1.20;
+  r.max_aspect_ratio = 1.21;
+  r.aspect_ratio_above_10_s = 1.22;
+  r.dominant_mode_end = 123;
+  r.shock_at_center_s = 1.24;
+  r.rim_reflections_s = {1.25, 1.26};
+  r.min_dt_s = 1.27;
+  r.max_dt_s = 1.28;
+  r.status = "completed";
+  r.error = "error text";
+  r.kernel_time_s = 1.31;
+  r.meshing_time_s = 1.32;
+  r.mesh_cache = "hit";
+  s.mode_count = 2;
+  s.mode_times = {1.34, 1.35};
+  s.mode_amplitudes = {1.36, 1.37, 1.38, 1.39};
+  s.abar_times = {1.40};
+  s.abar_values = {1.41};
+  return s;
+}
+
+// Equal, NaN included (EXPECT_EQ on doubles would fail NaN == NaN).
+void expect_same(double a, double b, const char* what) {
+  if (std::isnan(b)) {
+    EXPECT_TRUE(std::isnan(a)) << what << " " << a;
+  } else {
+    EXPECT_EQ(a, b) << what;
+  }
+}
+
+void expect_same_figures(const RunSummary& a, const RunSummary& b) {
+  EXPECT_EQ(a.elements, b.elements);
+  EXPECT_EQ(a.nodes, b.nodes);
+  EXPECT_EQ(a.steps, b.steps);
+  expect_same(a.wall_time_s, b.wall_time_s, "wall_time_s");
+  expect_same(a.end_time_s, b.end_time_s, "end_time_s");
+  expect_same(a.groups.pbar, b.groups.pbar, "pbar");
+  expect_same(a.groups.tbar_pulse, b.groups.tbar_pulse, "tbar_pulse");
+  expect_same(a.groups.mubar, b.groups.mubar, "mubar");
+  expect_same(a.groups.gamma, b.groups.gamma, "gamma");
+  expect_same(a.groups.c1, b.groups.c1, "c1");
+  expect_same(a.groups.c2, b.groups.c2, "c2");
+  expect_same(a.groups.time_scale_s, b.groups.time_scale_s, "time_scale_s");
+  expect_same(a.energy_injected_J_per_m, b.energy_injected_J_per_m, "energy_injected");
+  expect_same(a.energy_after_pulse_J_per_m, b.energy_after_pulse_J_per_m, "energy_after_pulse");
+  expect_same(a.max_abar_first_cycle, b.max_abar_first_cycle, "max_abar_first_cycle");
+  expect_same(a.max_abar, b.max_abar, "max_abar");
+  expect_same(a.abar_end, b.abar_end, "abar_end");
+  expect_same(a.max_abar_filtered_first_cycle, b.max_abar_filtered_first_cycle,
+              "max_abar_filtered_first_cycle");
+  expect_same(a.max_abar_filtered, b.max_abar_filtered, "max_abar_filtered");
+  expect_same(a.abar_filtered_end, b.abar_filtered_end, "abar_filtered_end");
+  expect_same(a.max_aspect_ratio, b.max_aspect_ratio, "max_aspect_ratio");
+  expect_same(a.aspect_ratio_above_10_s, b.aspect_ratio_above_10_s, "aspect_ratio_above_10_s");
+  EXPECT_EQ(a.dominant_mode_end, b.dominant_mode_end);
+  expect_same(a.shock_at_center_s, b.shock_at_center_s, "shock_at_center_s");
+  EXPECT_EQ(a.rim_reflections_s, b.rim_reflections_s);
+  expect_same(a.min_dt_s, b.min_dt_s, "min_dt_s");
+  expect_same(a.max_dt_s, b.max_dt_s, "max_dt_s");
+  EXPECT_EQ(a.status, b.status);
+  EXPECT_EQ(a.error, b.error);
+  expect_same(a.kernel_time_s, b.kernel_time_s, "kernel_time_s");
+  expect_same(a.meshing_time_s, b.meshing_time_s, "meshing_time_s");
+  EXPECT_EQ(a.mesh_cache, b.mesh_cache);
+}
+
+// The summary columns are one table (store/summary_rows.cpp): every field goes in with
+// finish() and comes back from summary(), from a reusing job's copy, from QueryJobs and from
+// the grid reduction's read.
+TEST_F(CatalogueTest, EverySummaryFieldRoundTripsThroughEveryRead) {
+  Catalogue c(path_);
+  c.insert(job("source"));
+  ASSERT_TRUE(c.start("source", now_us()));
+  const StoredSummary in = distinct_summary();
+  ASSERT_TRUE(
+      c.finish("source", 1, JobState::kSucceeded, "", "", "/r/result.h5", {}, &in, now_us()));
+  auto expect_whole = [&](const std::optional<StoredSummary>& out, const char* where) {
+    SCOPED_TRACE(where);
+    ASSERT_TRUE(out);
+    expect_same_figures(out->summary, in.summary);
+    EXPECT_EQ(out->mode_count, in.mode_count);
+    EXPECT_EQ(out->mode_times, in.mode_times);
+    EXPECT_EQ(out->mode_amplitudes, in.mode_amplitudes);
+    EXPECT_EQ(out->abar_times, in.abar_times);
+    EXPECT_EQ(out->abar_values, in.abar_values);
+  };
+  expect_whole(c.summary("source"), "summary()");
+
+  NewJob point = job("reuser");
+  point.grid_id = "g";
+  point.reused_from = "source";
+  point.result_path = "/r/result.h5";
+  NewGrid g;
+  g.id = "g";
+  g.create_us = now_us();
+  g.definition = "{}";
+  ASSERT_TRUE(c.insert_grid(g, {point}).created);
+  expect_whole(c.summary("reuser"), "copied for a reusing job");
+
+  JobQuery q;
+  q.grid_id = "g";
+  const auto rows = c.query(q);
+  ASSERT_EQ(rows.size(), 1u);
+  ASSERT_TRUE(rows[0].summary);
+  expect_same_figures(*rows[0].summary, in.summary);
+  // The jobs row's query figures: NaN becomes NULL (unknown), the rest are copied.
+  EXPECT_DOUBLE_EQ(rows[0].groups.pbar, in.summary.groups.pbar);
+
+  const auto points = c.grid_points("g");
+  ASSERT_EQ(points.size(), 1u);
+  ASSERT_TRUE(points[0].summary);
+  expect_same_figures(points[0].summary->summary, in.summary);
+  EXPECT_EQ(points[0].summary->abar_values, in.abar_values);
 }
 
 TEST_F(CatalogueTest, RequestIdReturnsTheFirstJob) {

@@ -12,6 +12,7 @@
 #include <sstream>
 #include <thread>
 
+#include "daemon_fixture.hpp"
 #include "server/daemon.hpp"
 #include "softshock/v1/service.grpc.pb.h"
 #include "solver/mesh_file_path.hpp"
@@ -59,10 +60,10 @@ std::string disk_msh(double r) {
   return m.str();
 }
 
-class MeshFileTest : public ::testing::Test {
+class MeshFileTest : public testing::DaemonFixture {
  protected:
+  MeshFileTest() : DaemonFixture("mesh") {}
   void SetUp() override {
-    dir_ = fs::temp_directory_path() / ("softshock-mesh-" + std::to_string(std::random_device{}()));
     meshes_ = dir_ / "data" / "meshes";
     fs::create_directories(meshes_ / "studies");
     std::ofstream(meshes_ / "disk.msh") << disk_msh(50e-6);
@@ -70,22 +71,6 @@ class MeshFileTest : public ::testing::Test {
     std::ofstream(dir_ / "outside.msh") << disk_msh(50e-6);  // exists, but not in meshes/
     fs::create_symlink(dir_ / "outside.msh", meshes_ / "escape.msh");
     fs::create_symlink(meshes_ / "disk.msh", meshes_ / "alias.msh");
-  }
-  void TearDown() override {
-    stub_.reset();
-    daemon_.reset();
-    fs::remove_all(dir_);
-  }
-
-  void start() {
-    DaemonConfig c;
-    c.data_dir = (dir_ / "data").string();
-    c.listen = "127.0.0.1:0";
-    c.workers = 1;
-    daemon_ = std::make_unique<Daemon>(c);
-    daemon_->start();
-    stub_ = v1::SimulationService::NewStub(grpc::CreateChannel(
-        "127.0.0.1:" + std::to_string(daemon_->port()), grpc::InsecureChannelCredentials()));
   }
 
   grpc::Status submit(const std::string& mesh_file, v1::Job* job) {
@@ -98,9 +83,7 @@ class MeshFileTest : public ::testing::Test {
     return stub_->SubmitJob(&ctx, req, job);
   }
 
-  fs::path dir_, meshes_;
-  std::unique_ptr<Daemon> daemon_;
-  std::unique_ptr<v1::SimulationService::Stub> stub_;
+  fs::path meshes_;
 };
 
 std::string resolve_error(const std::string& root, const std::string& name) {
@@ -137,15 +120,7 @@ TEST_F(MeshFileTest, ARealMeshFileRunsThroughTheDaemon) {
   v1::Job job;
   grpc::Status s = submit("disk.msh", &job);
   ASSERT_TRUE(s.ok()) << s.error_message();
-  const auto deadline = std::chrono::steady_clock::now() + 60s;
-  while (job.state() != v1::SUCCEEDED && job.state() != v1::FAILED &&
-         std::chrono::steady_clock::now() < deadline) {
-    std::this_thread::sleep_for(50ms);
-    grpc::ClientContext ctx;
-    v1::GetJobRequest get;
-    get.set_id(job.id());
-    ASSERT_TRUE(stub_->GetJob(&ctx, get, &job).ok());
-  }
+  job = wait_terminal(job.id());
   ASSERT_EQ(job.state(), v1::SUCCEEDED) << job.reason() << ": " << job.error();
   EXPECT_EQ(job.spec().geometry().mesh_file(), "disk.msh") << "stored as the client named it";
   grpc::ClientContext ctx;

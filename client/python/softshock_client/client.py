@@ -352,6 +352,12 @@ class Client:
         response = self._call(self._health.Check, health_pb2.HealthCheckRequest(service=service))
         return health_pb2.HealthCheckResponse.ServingStatus.Name(response.status)
 
+    def health_warnings(self) -> List[str]:
+        """What the daemon warns about its set-up (e.g. a bearer token served without TLS off
+        loopback): the `softshock-warning` entries of a health answer's metadata."""
+        _, call = self._call(self._health.Check.with_call, health_pb2.HealthCheckRequest())
+        return [value for key, value in call.initial_metadata() if key == "softshock-warning"]
+
     # -- results -------------------------------------------------------------------------------
     def summary(self, job_id: str) -> dict:
         """The run's figures as a dict with the proto's snake_case names (SI units)."""

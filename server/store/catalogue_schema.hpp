@@ -1,0 +1,14 @@
+// The catalogue's schema (server/store/ only): tables, indexes and their migrations.
+#pragma once
+
+#include <string>
+
+#include "server/store/sqlite_connection.hpp"
+
+namespace softshock::server::detail {
+
+// Brings the catalogue at `path` (open on `c`) to the newest schema, in one transaction;
+// returns that version. Throws CatalogueError for a catalogue newer than this softshockd.
+int migrate_catalogue(SqliteConnection& c, const std::string& path);
+
+}  // namespace softshock::server::detail
