@@ -34,9 +34,13 @@ void ElementState::reset_to_reference() {
 
 namespace {
 
-// The element loop, once for plain P1 and once with nodal pressures; inlined into the
-// target_clones entry point below so each ISA gets its own vectorised copy.
-template <bool kNodal>
+// How an element gets its volumetric stress: its own Tait law (plain P1), the mean of its nodes'
+// (average nodal pressure, element_weight 0: the default, no per-element J^-n at all), or a blend.
+enum class Volumetric { kElement, kNodal, kBlend };
+
+// The element loop, once per volumetric variant; inlined into the target_clones entry point
+// below so each ISA gets its own vectorised copy.
+template <Volumetric kVolumetric>
 inline __attribute__((always_inline)) void element_loop(const ElementGeometry& g, const double* x,
                                                         const double* y, const KernelParams& p,
                                                         std::size_t begin, std::size_t end,
@@ -44,6 +48,7 @@ inline __attribute__((always_inline)) void element_loop(const ElementGeometry& g
                                                         double* node_fx, double* node_fy,
                                                         bool& all_valid) {
   namespace cm = continuum;
+  constexpr bool kNodal = kVolumetric != Volumetric::kElement;
   const double n = p.tait_n;
   const bool lagged = p.dt > 0;
   const double artificial_on = p.viscosity && lagged ? 1.0 : 0.0;
@@ -108,8 +113,11 @@ inline __attribute__((always_inline)) void element_loop(const ElementGeometry& g
       const double log_j = ::log(j);
       const double j_minus_23 = ::exp(-2.0 / 3.0 * log_j);
       double mean_stress, bulk_modulus;
-      if constexpr (kNodal) {
-        const double j_minus_n = w_element > 0.0 ? ::exp(-n * log_j) : 1.0;
+      if constexpr (kVolumetric == Volumetric::kNodal) {  // w_element = 0
+        mean_stress = nodal_sm_mean[k] + shift[e];
+        bulk_modulus = nodal_k_max[k] + k_stab;
+      } else if constexpr (kVolumetric == Volumetric::kBlend) {
+        const double j_minus_n = ::exp(-n * log_j);
         mean_stress = w_nodal * (nodal_sm_mean[k] + shift[e]) +
                       w_element * cm::tait_mean_stress(kappa, n, j_minus_n);
         bulk_modulus = w_nodal * (nodal_k_max[k] + k_stab) +
@@ -192,10 +200,15 @@ __attribute__((target_clones("avx512f", "avx2", "default"))) void compute_elemen
   const double *dxx = g.dm_inv_xx.data(), *dxy = g.dm_inv_xy.data(), *dyx = g.dm_inv_yx.data(),
                *dyy = g.dm_inv_yy.data();
   bool all_valid = true;
-  if (p.nodal_mean_stress != nullptr)
-    element_loop<true>(g, x, y, p, begin, end, s, totals, node_fx, node_fy, all_valid);
+  if (p.nodal_mean_stress == nullptr)
+    element_loop<Volumetric::kElement>(g, x, y, p, begin, end, s, totals, node_fx, node_fy,
+                                       all_valid);
+  else if (p.element_weight == 0.0)
+    element_loop<Volumetric::kNodal>(g, x, y, p, begin, end, s, totals, node_fx, node_fy,
+                                     all_valid);
   else
-    element_loop<false>(g, x, y, p, begin, end, s, totals, node_fx, node_fy, all_valid);
+    element_loop<Volumetric::kBlend>(g, x, y, p, begin, end, s, totals, node_fx, node_fy,
+                                     all_valid);
 
   if (!all_valid && totals.bad_element < 0) {  // rare: recompute J to name the first offender
     for (std::size_t e = begin; e < end; ++e) {
