@@ -7,6 +7,7 @@
 #include <unordered_set>
 
 #include "continuum.hpp"
+#include "element_diagnostics.hpp"
 #include "nodal_pressure.hpp"
 
 namespace softshock {
@@ -106,47 +107,22 @@ std::vector<double> Diagnostics::aspect_ratios(const NodalView& nodes) const {
   return out;
 }
 
-std::pair<double, double> Diagnostics::max_aspect_ratio(const NodalView& nodes, int64_t e) const {
+double Diagnostics::volumetric_mean_stress(const KernelView& kernel, std::size_t e) const {
   const ElementGeometry& g = geometry_;
-  const int32_t *n0 = g.node0.data(), *n1 = g.node1.data(), *n2 = g.node2.data();
-  double max = 0.0;
-  for (std::size_t k = 0; k < g.size(); ++k) {
-    const int32_t a = n0[k], b = n1[k], c = n2[k];
-    const double r = continuum::aspect_ratio(nodes.x[b] - nodes.x[a], nodes.y[b] - nodes.y[a],
-                                             nodes.x[c] - nodes.x[a], nodes.y[c] - nodes.y[a]);
-    max = k == 0 || r > max ? r : max;  // as std::max_element: the first of equal maxima
-  }
-  double own = 0.0;
-  if (e >= 0 && static_cast<std::size_t>(e) < g.size()) {
-    const int32_t a = n0[e], b = n1[e], c = n2[e];
-    own = continuum::aspect_ratio(nodes.x[b] - nodes.x[a], nodes.y[b] - nodes.y[a],
-                                  nodes.x[c] - nodes.x[a], nodes.y[c] - nodes.y[a]);
-  }
-  return {max, own};
-}
-
-std::vector<double> Diagnostics::element_mean_stress(const KernelView& kernel) const {
-  namespace cm = continuum;
-  const ElementGeometry& g = geometry_;
-  if (nodal_area0_.empty() || kernel.nodal_mean_stress == nullptr) return {};
-  const Material& mat = problem_.material;
-  const double kappa = mat.bulk_modulus_Pa, n = mat.tait_n();
+  const double *sm = kernel.nodal_mean_stress, *shift = kernel.element_stress_shift;
   const double w_element = problem_.element.element_weight, w_nodal = 1.0 - w_element;
-  const double *sm = kernel.nodal_mean_stress, *shift = kernel.element_stress_shift,
-               *je = kernel.element_j;
-  std::vector<double> out(g.size());
-  for (std::size_t e = 0; e < g.size(); ++e) {
-    const double nodal_mean = (sm[g.node0[e]] + sm[g.node1[e]] + sm[g.node2[e]]) / 3.0 + shift[e];
-    double v = w_nodal * nodal_mean;
-    // The element's own Tait stress blended in (J_e = current / reference area, from pass 1).
-    if (w_element > 0) v += w_element * cm::tait_mean_stress(kappa, n, std::pow(je[e], -n));
-    out[e] = v;
+  const double nodal_mean = (sm[g.node0[e]] + sm[g.node1[e]] + sm[g.node2[e]]) / 3.0 + shift[e];
+  double v = w_nodal * nodal_mean;
+  // The element's own Tait stress blended in (J_e = current / reference area, from pass 1).
+  if (w_element > 0) {
+    const double kappa = problem_.material.bulk_modulus_Pa, n = problem_.material.tait_n();
+    v += w_element * continuum::tait_mean_stress(kappa, n, std::pow(kernel.element_j[e], -n));
   }
-  return out;
+  return v;
 }
 
-double Diagnostics::stored_energy(const NodalView& nodes, const KernelView& kernel) const {
-  namespace cm = continuum;
+double Diagnostics::stored_energy(const NodalView& nodes, const KernelView& kernel,
+                                  double* max_aspect_ratio) const {
   const ElementGeometry& g = geometry_;
   const Material& mat = problem_.material;
   const double kappa = mat.bulk_modulus_Pa, n = mat.tait_n();
@@ -156,31 +132,20 @@ double Diagnostics::stored_energy(const NodalView& nodes, const KernelView& kern
   if (nodal) {  // sum_a V_a W_vol(J_a) + sum_e A_e (beta kappa / 2)(J_e - Jbar_e)^2
     const double w_nodal = 1.0 - w_element;
     const double beta_kappa = problem_.element.stabilization * kappa;
-    const double* nodal_j = kernel.nodal_j;
-    for (std::size_t i = 0; i < nodal_area0_.size(); ++i)
-      energy += w_nodal * nodal_area0_[i] *
-                cm::tait_energy(kappa, n, nodal_j[i], std::pow(nodal_j[i], -n));
+    energy = add_nodal_volumetric_energy(nodal_area0_.data(), kernel.nodal_j, nodal_area0_.size(),
+                                         kappa, n, w_nodal, energy);
     const double* s = kernel.element_stress_shift;
     for (std::size_t e = 0; e < g.size(); ++e)
       energy += w_nodal * 0.5 * g.area0[e] * s[e] * s[e] / (beta_kappa > 0 ? beta_kappa : 1.0);
   }
-  for (std::size_t e = 0; e < g.size(); ++e) {
-    const int32_t a = g.node0[e], b = g.node1[e], c = g.node2[e];
-    const cm::Mat2 f = cm::deformation_gradient(
-        nodes.x[b] - nodes.x[a], nodes.y[b] - nodes.y[a], nodes.x[c] - nodes.x[a],
-        nodes.y[c] - nodes.y[a], {g.dm_inv_xx[e], g.dm_inv_xy[e], g.dm_inv_yx[e], g.dm_inv_yy[e]});
-    const double j = cm::det(f);
-    double w = cm::neo_hookean_energy(mat.shear_modulus_Pa, cm::first_invariant(f),
-                                      std::pow(j, -2.0 / 3.0));
-    if (w_element > 0) w += w_element * cm::tait_energy(kappa, n, j, std::pow(j, -n));
-    energy += g.area0[e] * w;
-  }
-  return energy;
+  const ElementScan scan =
+      scan_elements(g, nodes.x, nodes.y, mat.shear_modulus_Pa, kappa, n, w_element, energy);
+  if (max_aspect_ratio != nullptr) *max_aspect_ratio = scan.max_aspect_ratio;
+  return scan.energy;
 }
 
 ElementStress Diagnostics::element_stress(const NodalView& nodes, const ElementState& s,
-                                          const std::vector<double>& volumetric_sm,
-                                          std::size_t e) const {
+                                          const KernelView& kernel, std::size_t e) const {
   namespace cm = continuum;
   const ElementGeometry& g = geometry_;
   const Material& mat = problem_.material;
@@ -192,8 +157,8 @@ ElementStress Diagnostics::element_stress(const NodalView& nodes, const ElementS
   const double n = mat.tait_n();
   const double j_minus_23 = std::pow(j, -2.0 / 3.0);
   // Average nodal pressure: the mean stress the kernel applied; plain P1: the element's own.
-  const double sm = !volumetric_sm.empty()
-                        ? volumetric_sm[e]
+  const double sm = !nodal_area0_.empty() && kernel.nodal_mean_stress != nullptr
+                        ? volumetric_mean_stress(kernel, e)
                         : cm::tait_mean_stress(mat.bulk_modulus_Pa, n, std::pow(j, -n));
   const double i1 = cm::first_invariant(f);
   // Elastic Cauchy stress: sigma_m I + (mu J^-2/3 / J)(B - I1/3 I), B = F F^T (B_zz = 1).
@@ -222,9 +187,8 @@ void Diagnostics::sample(const NodalView& nodes, const ElementState& s, const Ke
   double kinetic = 0;
   for (std::size_t i = 0; i < nn; ++i)
     kinetic += 0.5 * nodes.mass[i] * (nodes.vx[i] * nodes.vx[i] + nodes.vy[i] * nodes.vy[i]);
-  const double elastic = stored_energy(nodes, kernel);
-  const std::vector<double> nodal_sm = element_mean_stress(kernel);
-  const auto [max_aspect, dt_element_aspect] = max_aspect_ratio(nodes, dt_element);
+  double max_aspect = 0.0;
+  const double elastic = stored_energy(nodes, kernel, &max_aspect);
 
   // Rim: radial displacement, velocity and acceleration in the current polar frame.
   const std::size_t nr = rim_nodes_.size();
@@ -268,12 +232,12 @@ void Diagnostics::sample(const NodalView& nodes, const ElementState& s, const Ke
   for (int32_t e : center_elements_) {
     const double area = geometry_.area0[e];
     center_area += area;
-    center_stress += area * element_stress(nodes, s, nodal_sm, e).mean();
+    center_stress += area * element_stress(nodes, s, kernel, e).mean();
   }
 
   double min_hoop = std::numeric_limits<double>::max();
   for (int32_t e : rim_elements_) {
-    const ElementStress st = element_stress(nodes, s, nodal_sm, e);
+    const ElementStress st = element_stress(nodes, s, kernel, e);
     const auto& tri = mesh.triangles[e];
     const double cx = (nodes.x[tri[0]] + nodes.x[tri[1]] + nodes.x[tri[2]]) / 3.0 - origin_[0];
     const double cy = (nodes.y[tri[0]] + nodes.y[tri[1]] + nodes.y[tri[2]]) / 3.0 - origin_[1];
@@ -300,8 +264,13 @@ void Diagnostics::sample(const NodalView& nodes, const ElementState& s, const Ke
   const bool known = dt_element >= 0 && static_cast<std::size_t>(dt_element) < geometry_.size();
   const std::size_t de = known ? static_cast<std::size_t>(dt_element) : 0;
   h.dt_element.push_back(known ? static_cast<double>(dt_element) : -1.0);
-  h.dt_element_aspect_ratio.push_back(known ? dt_element_aspect : 0.0);
-  h.dt_element_j.push_back(known ? element_stress(nodes, s, nodal_sm, de).j : 0.0);
+  h.dt_element_aspect_ratio.push_back(
+      known ? continuum::aspect_ratio(nodes.x[geometry_.node1[de]] - nodes.x[geometry_.node0[de]],
+                                      nodes.y[geometry_.node1[de]] - nodes.y[geometry_.node0[de]],
+                                      nodes.x[geometry_.node2[de]] - nodes.x[geometry_.node0[de]],
+                                      nodes.y[geometry_.node2[de]] - nodes.y[geometry_.node0[de]])
+            : 0.0);
+  h.dt_element_j.push_back(known ? element_stress(nodes, s, kernel, de).j : 0.0);
   h.dt_element_on_rim.push_back(known && (on_rim_node_[geometry_.node0[de]] ||
                                           on_rim_node_[geometry_.node1[de]] ||
                                           on_rim_node_[geometry_.node2[de]])
@@ -327,9 +296,8 @@ FieldFrame Diagnostics::frame(const NodalView& nodes, const ElementState& s,
   fr.J.resize(ne), fr.mean_stress.resize(ne), fr.radial_stress.resize(ne);
   fr.hoop_stress.resize(ne), fr.von_mises.resize(ne);
   fr.aspect_ratio = aspect_ratios(nodes);
-  const std::vector<double> nodal_sm = element_mean_stress(kernel);
   for (std::size_t e = 0; e < ne; ++e) {
-    const ElementStress st = element_stress(nodes, s, nodal_sm, e);
+    const ElementStress st = element_stress(nodes, s, kernel, e);
     const auto& tri = mesh.triangles[e];
     const double cx = (nodes.x[tri[0]] + nodes.x[tri[1]] + nodes.x[tri[2]]) / 3.0 - origin_[0];
     const double cy = (nodes.y[tri[0]] + nodes.y[tri[1]] + nodes.y[tri[2]]) / 3.0 - origin_[1];

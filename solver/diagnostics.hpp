@@ -55,17 +55,16 @@ class Diagnostics {
 
   // longest edge^2 / (2 area) of every element in its current shape.
   std::vector<double> aspect_ratios(const NodalView& nodes) const;
-  // Largest aspect ratio over all elements, and the aspect ratio of element `e` (if e >= 0).
-  std::pair<double, double> max_aspect_ratio(const NodalView& nodes, int64_t e) const;
-  // The volumetric part under the element formulation, from the nodal state the kernel left:
-  // per-element mean stress as the kernel applies it (empty for plain P1, whose elements use
-  // their own J).
-  std::vector<double> element_mean_stress(const KernelView& kernel) const;
-  // The stored energy of the whole body (J/m; volumetric, stabilisation and deviatoric).
-  double stored_energy(const NodalView& nodes, const KernelView& kernel) const;
-  // volumetric_sm: element_mean_stress() (empty for plain P1).
+  // The stored energy of the whole body (J/m; volumetric, stabilisation and deviatoric), with the
+  // largest aspect ratio of the elements from the same pass (if max_aspect_ratio is not null).
+  double stored_energy(const NodalView& nodes, const KernelView& kernel,
+                       double* max_aspect_ratio = nullptr) const;
+  // The volumetric mean stress the kernel applied to element e (average nodal pressure only).
+  double volumetric_mean_stress(const KernelView& kernel, std::size_t e) const;
+  // Cauchy stress of element e; its mean stress under the element formulation (kernel: the
+  // state the last evaluation left).
   ElementStress element_stress(const NodalView& nodes, const ElementState& elements,
-                               const std::vector<double>& volumetric_sm, std::size_t e) const;
+                               const KernelView& kernel, std::size_t e) const;
 
  private:
   const Problem& problem_;
