@@ -16,10 +16,9 @@ __attribute__((simd("notinbranch"))) double log(double) noexcept;
 namespace softshock {
 
 void ElementState::resize(std::size_t elements) {
-  for (auto* v : {&f_xx, &f_xy, &f_yx, &f_yy, &log_j, &pv_xx, &pv_xy, &pv_yx, &pv_yy, &viscosity,
-                  &bulk_viscosity}) {
-    v->assign(elements, 0.0);
-  }
+  for (auto* v : {&f_xx, &f_xy, &f_yx, &f_yy, &log_j}) v->assign(elements, 0.0);
+  for (auto* v : {&pv_xx, &pv_xy, &pv_yx, &pv_yy, &viscosity, &bulk_viscosity})
+    v->assign(elements, 0.0f);
   reset_to_reference();
 }
 
@@ -27,8 +26,8 @@ void ElementState::reset_to_reference() {
   for (std::size_t e = 0; e < log_j.size(); ++e) {
     f_xx[e] = 1.0, f_xy[e] = 0.0, f_yx[e] = 0.0, f_yy[e] = 1.0;
     log_j[e] = 0.0;
-    pv_xx[e] = pv_xy[e] = pv_yx[e] = pv_yy[e] = 0.0;
-    viscosity[e] = bulk_viscosity[e] = 0.0;
+    pv_xx[e] = pv_xy[e] = pv_yx[e] = pv_yy[e] = 0.0f;
+    viscosity[e] = bulk_viscosity[e] = 0.0f;
   }
 }
 
@@ -57,7 +56,7 @@ inline __attribute__((always_inline)) void element_loop(const ElementGeometry& g
   const double kappa = p.kappa, mu = p.mu, rho0 = p.rho0, c1 = p.c1, c2 = p.c2;
   const double ramp_inv = p.ramp_inv, altitude_length = p.altitude_length;
   const double shear_share = p.artificial_shear;
-  double *shear_out = s.viscosity.data(), *bulk_out = s.bulk_viscosity.data();
+  float *shear_out = s.viscosity.data(), *bulk_out = s.bulk_viscosity.data();
   const double w_element = kNodal ? p.element_weight : 1.0, w_nodal = 1.0 - w_element;
   const double* nodal_sm = p.nodal_mean_stress;
   const double* nodal_k = p.nodal_bulk_modulus;
@@ -72,7 +71,7 @@ inline __attribute__((always_inline)) void element_loop(const ElementGeometry& g
                *dyy = g.dm_inv_yy.data(), *area0 = g.area0.data();
   double *fxx = s.f_xx.data(), *fxy = s.f_xy.data(), *fyx = s.f_yx.data(), *fyy = s.f_yy.data();
   double* log_j_prev = s.log_j.data();
-  double *pxx = s.pv_xx.data(), *pxy = s.pv_xy.data(), *pyx = s.pv_yx.data(), *pyy = s.pv_yy.data();
+  float *pxx = s.pv_xx.data(), *pxy = s.pv_xy.data(), *pyx = s.pv_yx.data(), *pyy = s.pv_yy.data();
 
   // Edge vectors (and, with nodal pressures, the nodes' Tait state) are gathered per block into
   // small contiguous buffers (indexed loads do not vectorise well); the element loop then
@@ -149,7 +148,7 @@ inline __attribute__((always_inline)) void element_loop(const ElementGeometry& g
       const double zeta = (1.0 - shear_share) * 4.0 / 3.0 * nu_art;
       step_sq_out[k] = cm::stable_step_sq(h_sq, c_sq, 4.0 / 3.0 * nu + zeta, rho0, j);
       const cm::Mat2 pv = cm::viscous_piola(f, f_prev, cof, nu, zeta, dt);
-      shear_out[e] = nu, bulk_out[e] = zeta;
+      shear_out[e] = static_cast<float>(nu), bulk_out[e] = static_cast<float>(zeta);
       // Work of the viscous stress over the step, trapezoidal in time: what the integrator sees
       // as nodal viscous forces times the nodal displacement increments.
       dissipation_out[k] =
@@ -159,7 +158,8 @@ inline __attribute__((always_inline)) void element_loop(const ElementGeometry& g
 
       fxx[e] = f[0], fxy[e] = f[1], fyx[e] = f[2], fyy[e] = f[3];
       log_j_prev[e] = log_j;
-      pxx[e] = pv[0], pxy[e] = pv[1], pyx[e] = pv[2], pyy[e] = pv[3];
+      pxx[e] = static_cast<float>(pv[0]), pxy[e] = static_cast<float>(pv[1]);
+      pyx[e] = static_cast<float>(pv[2]), pyy[e] = static_cast<float>(pv[3]);
 
       // Force on node a: -A0 P grad N_a; grad N1, grad N2 are the rows of Dm^-1.
       const double p00 = elastic[0] + pv[0], p01 = elastic[1] + pv[1];
