@@ -54,7 +54,9 @@ inline __attribute__((always_inline)) void element_loop(const ElementGeometry& g
   const double eta = lagged ? p.eta : 0.0;
   const double dt = lagged ? p.dt : 1.0;  // keeps the unused viscous branch finite
   const double kappa = p.kappa, mu = p.mu, rho0 = p.rho0, c1 = p.c1, c2 = p.c2;
-  const double ramp_inv = p.ramp_inv, altitude_length = p.altitude_length;
+  const double ramp_inv = p.ramp_inv;
+  const bool smallest_altitude = p.altitude_length > 0.5;
+  const double inv_rho0 = 1.0 / rho0, four_thirds_mu = 4.0 / 3.0 * mu;
   const double shear_share = p.artificial_shear;
   float *shear_out = s.viscosity.data(), *bulk_out = s.bulk_viscosity.data();
   const double w_element = kNodal ? p.element_weight : 1.0, w_nodal = 1.0 - w_element;
@@ -80,7 +82,7 @@ inline __attribute__((always_inline)) void element_loop(const ElementGeometry& g
   // included.
   constexpr std::size_t kBlock = 256;
   alignas(64) double edge1x[kBlock], edge1y[kBlock], edge2x[kBlock], edge2y[kBlock];
-  alignas(64) double nodal_sm_mean[kBlock], nodal_k_max[kBlock];
+  alignas(64) double nodal_sm_sum[kBlock], nodal_k_max[kBlock];
   // Per-element results reduced after the (reduction-free, hence vectorisable) loop.
   alignas(64) double step_sq_out[kBlock], dissipation_out[kBlock], j_out[kBlock];
   // Corner forces of the block, scattered to the nodes after the vectorised loop.
@@ -95,7 +97,7 @@ inline __attribute__((always_inline)) void element_loop(const ElementGeometry& g
       edge1x[k] = x[b] - x[a], edge1y[k] = y[b] - y[a];
       edge2x[k] = x[c] - x[a], edge2y[k] = y[c] - y[a];
       if constexpr (kNodal) {
-        nodal_sm_mean[k] = (nodal_sm[a] + nodal_sm[b] + nodal_sm[c]) / 3.0;
+        nodal_sm_sum[k] = nodal_sm[a] + nodal_sm[b] + nodal_sm[c];
         const double kab = nodal_k[a] > nodal_k[b] ? nodal_k[a] : nodal_k[b];
         nodal_k_max[k] = kab > nodal_k[c] ? kab : nodal_k[c];
       }
@@ -113,11 +115,11 @@ inline __attribute__((always_inline)) void element_loop(const ElementGeometry& g
       const double j_minus_23 = ::exp(-2.0 / 3.0 * log_j);
       double mean_stress, bulk_modulus;
       if constexpr (kVolumetric == Volumetric::kNodal) {  // w_element = 0
-        mean_stress = nodal_sm_mean[k] + shift[e];
+        mean_stress = nodal_sm_sum[k] * cm::kThird + shift[e];
         bulk_modulus = nodal_k_max[k] + k_stab;
       } else if constexpr (kVolumetric == Volumetric::kBlend) {
         const double j_minus_n = ::exp(-n * log_j);
-        mean_stress = w_nodal * (nodal_sm_mean[k] + shift[e]) +
+        mean_stress = w_nodal * (nodal_sm_sum[k] * cm::kThird + shift[e]) +
                       w_element * cm::tait_mean_stress(kappa, n, j_minus_n);
         bulk_modulus = w_nodal * (nodal_k_max[k] + k_stab) +
                        w_element * cm::tait_bulk_modulus(kappa, j_minus_n);
@@ -127,26 +129,30 @@ inline __attribute__((always_inline)) void element_loop(const ElementGeometry& g
         bulk_modulus = cm::tait_bulk_modulus(kappa, j_minus_n);
       }
       const cm::Mat2 cof = cm::cofactor(f);
-      const cm::Mat2 elastic = cm::elastic_piola(f, cof, j, mean_stress, mu, j_minus_23);
+      const double inv_j = 1.0 / j;  // one division for every term over J
+      const cm::Mat2 elastic = cm::elastic_piola_inv_j(f, cof, inv_j, mean_stress, mu, j_minus_23);
 
-      const double c_sq = cm::longitudinal_speed_sq(bulk_modulus, mu, rho0, j);
+      // c^2 = (K + 4/3 mu) / rho with rho = rho0 / J (continuum::longitudinal_speed_sq).
+      const double c_sq = (bulk_modulus + four_thirds_mu) * j * inv_rho0;
       const double c = std::sqrt(c_sq);
       const double h_sq = cm::smallest_altitude_sq(e1x, e1y, e2x, e2y);
 
-      // Viscosity: artificial (continuous in the compression measure z) plus Kelvin-Voigt.
+      // Viscosity: artificial (continuous in the compression measure z) plus Kelvin-Voigt. Its
+      // length: the smallest altitude (thesis) or that of the equilateral triangle of the
+      // current area, selected before the one square root.
       const cm::Mat2 f_prev{fxx[e], fxy[e], fyx[e], fyy[e]};
-      const double h_area = std::sqrt(sqrt3 * j * area0[e]);
-      const double h_visc = altitude_length * std::sqrt(h_sq) + (1.0 - altitude_length) * h_area;
+      const double h_visc = std::sqrt(smallest_altitude ? h_sq : sqrt3 * j * area0[e]);
       const double z = -h_visc * (log_j - log_j_prev[e]) / (dt * c);
       // The thesis's artificial viscosity is a shear viscosity; the continuous one acts on
       // compression alone, as a bulk viscosity of the same longitudinal strength (4/3 nu), so a
       // planar shock sees the same viscous stress but isochoric (shear) flow -- the rim's
       // instability -- sees only the physical eta (docs/model.md).
-      const double nu_art =
-          artificial_on * cm::artificial_viscosity(h_visc, rho0, j, c1, c2, c, z, ramp_inv);
+      const double nu_art = artificial_on * cm::artificial_viscosity_rho(h_visc, rho0 * inv_j, c1,
+                                                                         c2, c, z, ramp_inv);
       const double nu = eta + shear_share * nu_art;
       const double zeta = (1.0 - shear_share) * 4.0 / 3.0 * nu_art;
-      step_sq_out[k] = cm::stable_step_sq(h_sq, c_sq, 4.0 / 3.0 * nu + zeta, rho0, j);
+      step_sq_out[k] =
+          cm::stable_step_sq_kinematic(h_sq, c_sq, (4.0 / 3.0 * nu + zeta) * j * inv_rho0);
       const cm::Mat2 pv = cm::viscous_piola(f, f_prev, cof, nu, zeta, dt);
       shear_out[e] = static_cast<float>(nu), bulk_out[e] = static_cast<float>(zeta);
       // Work of the viscous stress over the step, trapezoidal in time: what the integrator sees

@@ -37,7 +37,8 @@ struct KernelParams {
   // 1 / ramp of the continuous switch (continuum::artificial_viscosity); huge = thesis switch.
   double ramp_inv = 5.0;
   // Length of the artificial viscosity: 1 = smallest altitude (thesis), 0 = sqrt(sqrt(3) area),
-  // the altitude of the equilateral triangle of the current area (does not vanish on slivers).
+  // the altitude of the equilateral triangle of the current area (does not vanish on slivers);
+  // one or the other (values above 0.5 select the smallest altitude).
   double altitude_length = 0.0;
   double eta = 0;  // Kelvin-Voigt shear viscosity, Pa s (on whenever dt > 0)
   // 1: the artificial viscosity is a shear viscosity (the thesis); 0: a bulk viscosity 4/3 nu.

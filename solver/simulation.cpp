@@ -12,6 +12,7 @@
 
 #include "diagnostics.hpp"
 #include "element_kernels.hpp"
+#include "integrator.hpp"
 #include "nodal_pressure.hpp"
 
 namespace softshock {
@@ -254,12 +255,7 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
     };
     auto predict = [&](int tid) {  // x+ = x + dt v + dt^2/2 a; v* = v + dt/2 a
       const auto [n0, n1] = node_range(tid);
-      for (std::size_t i = n0; i < n1; ++i) {
-        x[i] += dt * vx[i] + 0.5 * dt * dt * ax[i];
-        y[i] += dt * vy[i] + 0.5 * dt * dt * ay[i];
-        vx[i] += 0.5 * dt * ax[i];
-        vy[i] += 0.5 * dt * ay[i];
-      }
+      predict_nodes(dt, n0, n1, x.data(), y.data(), vx.data(), vy.data(), ax.data(), ay.data());
     };
     auto element_range = [&](int tid) {
       return std::pair<std::size_t, std::size_t>{ne * tid / threads, ne * (tid + 1) / threads};
@@ -322,12 +318,8 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
           fx[i] = sx, fy[i] = sy;
         }
       }
-      for (std::size_t i = n0; i < n1; ++i) {
-        ax[i] = free_x[i] * (fx[i] + fext_x[i]) / mass[i];
-        ay[i] = free_y[i] * (fy[i] + fext_y[i]) / mass[i];
-        vx[i] += 0.5 * dt * ax[i];
-        vy[i] += 0.5 * dt * ay[i];
-      }
+      correct_nodes(dt, n0, n1, fx.data(), fy.data(), fext_x.data(), fext_y.data(), free_x.data(),
+                    free_y.data(), mass.data(), ax.data(), ay.data(), vx.data(), vy.data());
     };
     if (threads == 1) {
       predict(0);
