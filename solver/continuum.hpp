@@ -51,14 +51,21 @@ inline double neo_hookean_energy(double mu, double i1, double j_pow_minus_two_th
   return 0.5 * mu * (i1 * j_pow_minus_two_thirds - 3.0);
 }
 
+inline constexpr double kThird = 1.0 / 3.0;
+
 // Elastic first Piola-Kirchhoff stress (in-plane block):
-// P = sigma_m cof(F) + mu J^-2/3 (F - I1/3 F^-T), with F^-T = cof(F) / J.
-inline Mat2 elastic_piola(const Mat2& f, const Mat2& cof, double j, double mean_stress, double mu,
-                          double j_pow_minus_two_thirds) {
+// P = sigma_m cof(F) + mu J^-2/3 (F - I1/3 F^-T), with F^-T = cof(F) / J; takes 1 / J (the kernel
+// computes it once for every term that divides by J).
+inline Mat2 elastic_piola_inv_j(const Mat2& f, const Mat2& cof, double inv_j, double mean_stress,
+                                double mu, double j_pow_minus_two_thirds) {
   const double a = mu * j_pow_minus_two_thirds;
-  const double s = mean_stress - a * first_invariant(f) / (3.0 * j);
+  const double s = mean_stress - a * first_invariant(f) * (kThird * inv_j);
   return {s * cof[0] + a * f[0], s * cof[1] + a * f[1], s * cof[2] + a * f[2],
           s * cof[3] + a * f[3]};
+}
+inline Mat2 elastic_piola(const Mat2& f, const Mat2& cof, double j, double mean_stress, double mu,
+                          double j_pow_minus_two_thirds) {
+  return elastic_piola_inv_j(f, cof, 1.0 / j, mean_stress, mu, j_pow_minus_two_thirds);
 }
 
 // Squared longitudinal wave speed c^2 = (K + 4 mu / 3) / rho, rho = rho0 / J.
@@ -102,7 +109,7 @@ inline Mat2 viscous_piola(const Mat2& f, const Mat2& f_prev, const Mat2& cof, do
   const double l10 = (df2 * pi00 + df3 * pi10) * inv;
   const double l11 = (df2 * pi01 + df3 * pi11) * inv;
   const double trace = l00 + l11;
-  const double third_trace = trace / 3.0;
+  const double third_trace = trace * kThird;
   const double d00 = 2.0 * nu * (l00 - third_trace) + zeta * trace;
   const double d11 = 2.0 * nu * (l11 - third_trace) + zeta * trace;
   const double d01 = nu * (l01 + l10);
@@ -123,24 +130,33 @@ inline double viscous_zz(double nu, double zeta, double in_plane_trace) {
 // where round-off decides the sign) gets almost none. ramp_inv = 1 / z_ramp; a huge ramp_inv
 // gives the thesis's switch (on while compressing). Where z > z_ramp this is the thesis's
 // 3/4 (h rho0 / J)(c2 a - c1 h ln(J / J_prev) / dt).
-inline double artificial_viscosity(double h, double rho0, double j, double c1, double c2,
-                                   double acoustic_speed, double z, double ramp_inv) {
+// Takes the current density rho = rho0 / J.
+inline double artificial_viscosity_rho(double h, double rho, double c1, double c2,
+                                       double acoustic_speed, double z, double ramp_inv) {
   const double z_pos = z > 0.0 ? z : 0.0;
   const double r = z_pos * ramp_inv;
   const double ramp = r < 1.0 ? r : 1.0;
-  return 0.75 * h * rho0 / j * acoustic_speed * (c2 * ramp + c1 * z_pos);
+  return 0.75 * h * rho * acoustic_speed * (c2 * ramp + c1 * z_pos);
+}
+inline double artificial_viscosity(double h, double rho0, double j, double c1, double c2,
+                                   double acoustic_speed, double z, double ramp_inv) {
+  return artificial_viscosity_rho(h, rho0 / j, c1, c2, acoustic_speed, z, ramp_inv);
 }
 
 // Squared stable step of one element with viscosity: the central-difference limit for a damped
 // oscillator, dt = h / (q + sqrt(q^2 + c^2)), with the viscous speed q = nu_l / (rho h),
 // rho = rho0 / J, and the longitudinal viscosity nu_l = 4/3 nu + zeta of a shear viscosity nu
 // (2 nu d_dev) and a bulk viscosity zeta. nu_l = 0 gives h^2 / c^2.
+// Written without h itself: with Q = q h = nu_l / rho, dt = h^2 / (Q + sqrt(Q^2 + c^2 h^2)) -- one
+// square root and one division. kinematic_viscosity = nu_l / rho = nu_l J / rho0 (m^2/s).
+inline double stable_step_sq_kinematic(double h_sq, double c_sq, double kinematic_viscosity) {
+  const double q = kinematic_viscosity;
+  const double dt = h_sq / (q + std::sqrt(q * q + c_sq * h_sq));
+  return dt * dt;
+}
 inline double stable_step_sq(double h_sq, double c_sq, double longitudinal_viscosity, double rho0,
                              double j) {
-  const double h = std::sqrt(h_sq);
-  const double q = longitudinal_viscosity * j / (rho0 * h);
-  const double d = q + std::sqrt(q * q + c_sq);
-  return h_sq / (d * d);
+  return stable_step_sq_kinematic(h_sq, c_sq, longitudinal_viscosity * j / rho0);
 }
 
 // Aspect ratio of the current triangle: longest edge^2 / (2 area) (equilateral: 2/sqrt(3)).

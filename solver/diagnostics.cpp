@@ -7,6 +7,7 @@
 #include <unordered_set>
 
 #include "continuum.hpp"
+#include "element_diagnostics.hpp"
 #include "nodal_pressure.hpp"
 
 namespace softshock {
@@ -106,37 +107,45 @@ std::vector<double> Diagnostics::aspect_ratios(const NodalView& nodes) const {
   return out;
 }
 
-Diagnostics::Volumetric Diagnostics::volumetric(const NodalView& nodes) const {
-  namespace cm = continuum;
+double Diagnostics::volumetric_mean_stress(const KernelView& kernel, std::size_t e) const {
+  const ElementGeometry& g = geometry_;
+  const double *sm = kernel.nodal_mean_stress, *shift = kernel.element_stress_shift;
+  const double w_element = problem_.element.element_weight, w_nodal = 1.0 - w_element;
+  const double nodal_mean = (sm[g.node0[e]] + sm[g.node1[e]] + sm[g.node2[e]]) / 3.0 + shift[e];
+  double v = w_nodal * nodal_mean;
+  // The element's own Tait stress blended in (J_e = current / reference area, from pass 1).
+  if (w_element > 0) {
+    const double kappa = problem_.material.bulk_modulus_Pa, n = problem_.material.tait_n();
+    v += w_element * continuum::tait_mean_stress(kappa, n, std::pow(kernel.element_j[e], -n));
+  }
+  return v;
+}
+
+double Diagnostics::stored_energy(const NodalView& nodes, const KernelView& kernel,
+                                  double* max_aspect_ratio) const {
   const ElementGeometry& g = geometry_;
   const Material& mat = problem_.material;
   const double kappa = mat.bulk_modulus_Pa, n = mat.tait_n();
-  Volumetric out;
-  if (!nodal_area0_.empty()) {
-    const Element& el = problem_.element;
-    NodalPressureState st = nodal_pressure_state(g, nodal_area0_, kappa, n, el.element_weight,
-                                                 el.stabilization, nodes.x, nodes.y);
-    out.element_mean_stress = std::move(st.element_mean_stress);
-    out.stored_energy = st.stored_energy;
+  double energy = 0;
+  const bool nodal = !nodal_area0_.empty() && kernel.nodal_j != nullptr;
+  const double w_element = nodal ? problem_.element.element_weight : 1.0;
+  if (nodal) {  // sum_a V_a W_vol(J_a) + sum_e A_e (beta kappa / 2)(J_e - Jbar_e)^2
+    const double w_nodal = 1.0 - w_element;
+    const double beta_kappa = problem_.element.stabilization * kappa;
+    energy = add_nodal_volumetric_energy(nodal_area0_.data(), kernel.nodal_j, nodal_area0_.size(),
+                                         kappa, n, w_nodal, energy);
+    const double* s = kernel.element_stress_shift;
+    for (std::size_t e = 0; e < g.size(); ++e)
+      energy += w_nodal * 0.5 * g.area0[e] * s[e] * s[e] / (beta_kappa > 0 ? beta_kappa : 1.0);
   }
-  const double w_element = nodal_area0_.empty() ? 1.0 : problem_.element.element_weight;
-  for (std::size_t e = 0; e < g.size(); ++e) {
-    const int32_t a = g.node0[e], b = g.node1[e], c = g.node2[e];
-    const cm::Mat2 f = cm::deformation_gradient(
-        nodes.x[b] - nodes.x[a], nodes.y[b] - nodes.y[a], nodes.x[c] - nodes.x[a],
-        nodes.y[c] - nodes.y[a], {g.dm_inv_xx[e], g.dm_inv_xy[e], g.dm_inv_yx[e], g.dm_inv_yy[e]});
-    const double j = cm::det(f);
-    double w = cm::neo_hookean_energy(mat.shear_modulus_Pa, cm::first_invariant(f),
-                                      std::pow(j, -2.0 / 3.0));
-    if (w_element > 0) w += w_element * cm::tait_energy(kappa, n, j, std::pow(j, -n));
-    out.stored_energy += g.area0[e] * w;
-  }
-  return out;
+  const ElementScan scan =
+      scan_elements(g, nodes.x, nodes.y, mat.shear_modulus_Pa, kappa, n, w_element, energy);
+  if (max_aspect_ratio != nullptr) *max_aspect_ratio = scan.max_aspect_ratio;
+  return scan.energy;
 }
 
 ElementStress Diagnostics::element_stress(const NodalView& nodes, const ElementState& s,
-                                          const std::vector<double>& volumetric_sm,
-                                          std::size_t e) const {
+                                          const KernelView& kernel, std::size_t e) const {
   namespace cm = continuum;
   const ElementGeometry& g = geometry_;
   const Material& mat = problem_.material;
@@ -146,10 +155,11 @@ ElementStress Diagnostics::element_stress(const NodalView& nodes, const ElementS
       nodes.y[c] - nodes.y[a], {g.dm_inv_xx[e], g.dm_inv_xy[e], g.dm_inv_yx[e], g.dm_inv_yy[e]});
   const double j = cm::det(f);
   const double n = mat.tait_n();
-  const double j_minus_n = std::pow(j, -n);
   const double j_minus_23 = std::pow(j, -2.0 / 3.0);
-  double sm = cm::tait_mean_stress(mat.bulk_modulus_Pa, n, j_minus_n);
-  if (!volumetric_sm.empty()) sm = volumetric_sm[e];  // average nodal pressure
+  // Average nodal pressure: the mean stress the kernel applied; plain P1: the element's own.
+  const double sm = !nodal_area0_.empty() && kernel.nodal_mean_stress != nullptr
+                        ? volumetric_mean_stress(kernel, e)
+                        : cm::tait_mean_stress(mat.bulk_modulus_Pa, n, std::pow(j, -n));
   const double i1 = cm::first_invariant(f);
   // Elastic Cauchy stress: sigma_m I + (mu J^-2/3 / J)(B - I1/3 I), B = F F^T (B_zz = 1).
   const double k = mat.shear_modulus_Pa * j_minus_23 / j;
@@ -169,19 +179,16 @@ ElementStress Diagnostics::element_stress(const NodalView& nodes, const ElementS
   return out;
 }
 
-void Diagnostics::sample(const NodalView& nodes, const ElementState& s, double t, double dt,
-                         int64_t dt_element, double dissipated, double external_work,
-                         History& h) const {
+void Diagnostics::sample(const NodalView& nodes, const ElementState& s, const KernelView& kernel,
+                         double t, double dt, int64_t dt_element, double dissipated,
+                         double external_work, History& h) const {
   const Mesh& mesh = problem_.mesh;
   const std::size_t nn = mesh.node_count();
   double kinetic = 0;
   for (std::size_t i = 0; i < nn; ++i)
     kinetic += 0.5 * nodes.mass[i] * (nodes.vx[i] * nodes.vx[i] + nodes.vy[i] * nodes.vy[i]);
-  const Volumetric vol = volumetric(nodes);
-  const double elastic = vol.stored_energy;
-  const std::vector<double>& nodal_sm = vol.element_mean_stress;
-  const std::vector<double> aspect = aspect_ratios(nodes);
-  const double max_aspect = aspect.empty() ? 0.0 : *std::max_element(aspect.begin(), aspect.end());
+  double max_aspect = 0.0;
+  const double elastic = stored_energy(nodes, kernel, &max_aspect);
 
   // Rim: radial displacement, velocity and acceleration in the current polar frame.
   const std::size_t nr = rim_nodes_.size();
@@ -225,12 +232,12 @@ void Diagnostics::sample(const NodalView& nodes, const ElementState& s, double t
   for (int32_t e : center_elements_) {
     const double area = geometry_.area0[e];
     center_area += area;
-    center_stress += area * element_stress(nodes, s, nodal_sm, e).mean();
+    center_stress += area * element_stress(nodes, s, kernel, e).mean();
   }
 
   double min_hoop = std::numeric_limits<double>::max();
   for (int32_t e : rim_elements_) {
-    const ElementStress st = element_stress(nodes, s, nodal_sm, e);
+    const ElementStress st = element_stress(nodes, s, kernel, e);
     const auto& tri = mesh.triangles[e];
     const double cx = (nodes.x[tri[0]] + nodes.x[tri[1]] + nodes.x[tri[2]]) / 3.0 - origin_[0];
     const double cy = (nodes.y[tri[0]] + nodes.y[tri[1]] + nodes.y[tri[2]]) / 3.0 - origin_[1];
@@ -257,8 +264,13 @@ void Diagnostics::sample(const NodalView& nodes, const ElementState& s, double t
   const bool known = dt_element >= 0 && static_cast<std::size_t>(dt_element) < geometry_.size();
   const std::size_t de = known ? static_cast<std::size_t>(dt_element) : 0;
   h.dt_element.push_back(known ? static_cast<double>(dt_element) : -1.0);
-  h.dt_element_aspect_ratio.push_back(known ? aspect[de] : 0.0);
-  h.dt_element_j.push_back(known ? element_stress(nodes, s, nodal_sm, de).j : 0.0);
+  h.dt_element_aspect_ratio.push_back(
+      known ? continuum::aspect_ratio(nodes.x[geometry_.node1[de]] - nodes.x[geometry_.node0[de]],
+                                      nodes.y[geometry_.node1[de]] - nodes.y[geometry_.node0[de]],
+                                      nodes.x[geometry_.node2[de]] - nodes.x[geometry_.node0[de]],
+                                      nodes.y[geometry_.node2[de]] - nodes.y[geometry_.node0[de]])
+            : 0.0);
+  h.dt_element_j.push_back(known ? element_stress(nodes, s, kernel, de).j : 0.0);
   h.dt_element_on_rim.push_back(known && (on_rim_node_[geometry_.node0[de]] ||
                                           on_rim_node_[geometry_.node1[de]] ||
                                           on_rim_node_[geometry_.node2[de]])
@@ -267,7 +279,8 @@ void Diagnostics::sample(const NodalView& nodes, const ElementState& s, double t
   h.modes.push_back(std::move(amplitude));
 }
 
-FieldFrame Diagnostics::frame(const NodalView& nodes, const ElementState& s, double t) const {
+FieldFrame Diagnostics::frame(const NodalView& nodes, const ElementState& s,
+                              const KernelView& kernel, double t) const {
   const Mesh& mesh = problem_.mesh;
   const std::size_t nn = mesh.node_count(), ne = geometry_.size();
   FieldFrame fr;
@@ -283,9 +296,8 @@ FieldFrame Diagnostics::frame(const NodalView& nodes, const ElementState& s, dou
   fr.J.resize(ne), fr.mean_stress.resize(ne), fr.radial_stress.resize(ne);
   fr.hoop_stress.resize(ne), fr.von_mises.resize(ne);
   fr.aspect_ratio = aspect_ratios(nodes);
-  const std::vector<double> nodal_sm = volumetric(nodes).element_mean_stress;
   for (std::size_t e = 0; e < ne; ++e) {
-    const ElementStress st = element_stress(nodes, s, nodal_sm, e);
+    const ElementStress st = element_stress(nodes, s, kernel, e);
     const auto& tri = mesh.triangles[e];
     const double cx = (nodes.x[tri[0]] + nodes.x[tri[1]] + nodes.x[tri[2]]) / 3.0 - origin_[0];
     const double cy = (nodes.y[tri[0]] + nodes.y[tri[1]] + nodes.y[tri[2]]) / 3.0 - origin_[1];

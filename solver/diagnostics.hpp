@@ -4,6 +4,7 @@
 #pragma once
 
 #include <array>
+#include <utility>
 #include <vector>
 
 #include "element_kernels.hpp"
@@ -15,6 +16,17 @@ namespace softshock {
 // Read-only view of the nodal state.
 struct NodalView {
   const double *x, *y, *vx, *vy, *ax, *ay, *mass;
+};
+
+// What the last force evaluation computed at the current positions, reused by the diagnostics
+// rather than computed again (average nodal pressure; all null for plain P1): each node's J_a and
+// its Tait mean stress less the stabilisation's patch mean (the stress the element loop
+// averages), and each element's stabilisation stress s_e and J_e = current / reference area.
+struct KernelView {
+  const double* nodal_j = nullptr;
+  const double* nodal_mean_stress = nullptr;
+  const double* element_stress_shift = nullptr;
+  const double* element_j = nullptr;
 };
 
 // Cauchy stress of one element (3x3 plane strain: xx, xy, yy, zz) and its J.
@@ -34,24 +46,25 @@ class Diagnostics {
   // Appends one sample at time t. Dissipation and external work are accumulated by the
   // integrator and passed in.
   // dt_element is the element that set dt (KernelTotals::min_step_element; < 0 = unknown).
-  void sample(const NodalView& nodes, const ElementState& elements, double t, double dt,
-              int64_t dt_element, double dissipated, double external_work, History& history) const;
+  void sample(const NodalView& nodes, const ElementState& elements, const KernelView& kernel,
+              double t, double dt, int64_t dt_element, double dissipated, double external_work,
+              History& history) const;
 
-  FieldFrame frame(const NodalView& nodes, const ElementState& elements, double t) const;
+  FieldFrame frame(const NodalView& nodes, const ElementState& elements, const KernelView& kernel,
+                   double t) const;
 
   // longest edge^2 / (2 area) of every element in its current shape.
   std::vector<double> aspect_ratios(const NodalView& nodes) const;
-  // The volumetric part under the element formulation: per-element mean stress as the kernel
-  // applies it (empty for plain P1, whose elements use their own J) and the stored energy of the
-  // whole body (J/m; deviatoric included).
-  struct Volumetric {
-    std::vector<double> element_mean_stress;
-    double stored_energy = 0;
-  };
-  Volumetric volumetric(const NodalView& nodes) const;
-  // volumetric_sm: Volumetric::element_mean_stress (empty for plain P1).
+  // The stored energy of the whole body (J/m; volumetric, stabilisation and deviatoric), with the
+  // largest aspect ratio of the elements from the same pass (if max_aspect_ratio is not null).
+  double stored_energy(const NodalView& nodes, const KernelView& kernel,
+                       double* max_aspect_ratio = nullptr) const;
+  // The volumetric mean stress the kernel applied to element e (average nodal pressure only).
+  double volumetric_mean_stress(const KernelView& kernel, std::size_t e) const;
+  // Cauchy stress of element e; its mean stress under the element formulation (kernel: the
+  // state the last evaluation left).
   ElementStress element_stress(const NodalView& nodes, const ElementState& elements,
-                               const std::vector<double>& volumetric_sm, std::size_t e) const;
+                               const KernelView& kernel, std::size_t e) const;
 
  private:
   const Problem& problem_;

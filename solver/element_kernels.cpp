@@ -16,10 +16,9 @@ __attribute__((simd("notinbranch"))) double log(double) noexcept;
 namespace softshock {
 
 void ElementState::resize(std::size_t elements) {
-  for (auto* v : {&f_xx, &f_xy, &f_yx, &f_yy, &log_j, &pv_xx, &pv_xy, &pv_yx, &pv_yy, &viscosity,
-                  &bulk_viscosity}) {
-    v->assign(elements, 0.0);
-  }
+  for (auto* v : {&f_xx, &f_xy, &f_yx, &f_yy, &log_j}) v->assign(elements, 0.0);
+  for (auto* v : {&pv_xx, &pv_xy, &pv_yx, &pv_yy, &viscosity, &bulk_viscosity})
+    v->assign(elements, 0.0f);
   reset_to_reference();
 }
 
@@ -27,16 +26,20 @@ void ElementState::reset_to_reference() {
   for (std::size_t e = 0; e < log_j.size(); ++e) {
     f_xx[e] = 1.0, f_xy[e] = 0.0, f_yx[e] = 0.0, f_yy[e] = 1.0;
     log_j[e] = 0.0;
-    pv_xx[e] = pv_xy[e] = pv_yx[e] = pv_yy[e] = 0.0;
-    viscosity[e] = bulk_viscosity[e] = 0.0;
+    pv_xx[e] = pv_xy[e] = pv_yx[e] = pv_yy[e] = 0.0f;
+    viscosity[e] = bulk_viscosity[e] = 0.0f;
   }
 }
 
 namespace {
 
-// The element loop, once for plain P1 and once with nodal pressures; inlined into the
-// target_clones entry point below so each ISA gets its own vectorised copy.
-template <bool kNodal>
+// How an element gets its volumetric stress: its own Tait law (plain P1), the mean of its nodes'
+// (average nodal pressure, element_weight 0: the default, no per-element J^-n at all), or a blend.
+enum class Volumetric { kElement, kNodal, kBlend };
+
+// The element loop, once per volumetric variant; inlined into the target_clones entry point
+// below so each ISA gets its own vectorised copy.
+template <Volumetric kVolumetric>
 inline __attribute__((always_inline)) void element_loop(const ElementGeometry& g, const double* x,
                                                         const double* y, const KernelParams& p,
                                                         std::size_t begin, std::size_t end,
@@ -44,15 +47,18 @@ inline __attribute__((always_inline)) void element_loop(const ElementGeometry& g
                                                         double* node_fx, double* node_fy,
                                                         bool& all_valid) {
   namespace cm = continuum;
+  constexpr bool kNodal = kVolumetric != Volumetric::kElement;
   const double n = p.tait_n;
   const bool lagged = p.dt > 0;
   const double artificial_on = p.viscosity && lagged ? 1.0 : 0.0;
   const double eta = lagged ? p.eta : 0.0;
   const double dt = lagged ? p.dt : 1.0;  // keeps the unused viscous branch finite
   const double kappa = p.kappa, mu = p.mu, rho0 = p.rho0, c1 = p.c1, c2 = p.c2;
-  const double ramp_inv = p.ramp_inv, altitude_length = p.altitude_length;
+  const double ramp_inv = p.ramp_inv;
+  const bool smallest_altitude = p.altitude_length > 0.5;
+  const double inv_rho0 = 1.0 / rho0, four_thirds_mu = 4.0 / 3.0 * mu;
   const double shear_share = p.artificial_shear;
-  double *shear_out = s.viscosity.data(), *bulk_out = s.bulk_viscosity.data();
+  float *shear_out = s.viscosity.data(), *bulk_out = s.bulk_viscosity.data();
   const double w_element = kNodal ? p.element_weight : 1.0, w_nodal = 1.0 - w_element;
   const double* nodal_sm = p.nodal_mean_stress;
   const double* nodal_k = p.nodal_bulk_modulus;
@@ -67,7 +73,7 @@ inline __attribute__((always_inline)) void element_loop(const ElementGeometry& g
                *dyy = g.dm_inv_yy.data(), *area0 = g.area0.data();
   double *fxx = s.f_xx.data(), *fxy = s.f_xy.data(), *fyx = s.f_yx.data(), *fyy = s.f_yy.data();
   double* log_j_prev = s.log_j.data();
-  double *pxx = s.pv_xx.data(), *pxy = s.pv_xy.data(), *pyx = s.pv_yx.data(), *pyy = s.pv_yy.data();
+  float *pxx = s.pv_xx.data(), *pxy = s.pv_xy.data(), *pyx = s.pv_yx.data(), *pyy = s.pv_yy.data();
 
   // Edge vectors (and, with nodal pressures, the nodes' Tait state) are gathered per block into
   // small contiguous buffers (indexed loads do not vectorise well); the element loop then
@@ -76,7 +82,7 @@ inline __attribute__((always_inline)) void element_loop(const ElementGeometry& g
   // included.
   constexpr std::size_t kBlock = 256;
   alignas(64) double edge1x[kBlock], edge1y[kBlock], edge2x[kBlock], edge2y[kBlock];
-  alignas(64) double nodal_sm_mean[kBlock], nodal_k_max[kBlock];
+  alignas(64) double nodal_sm_sum[kBlock], nodal_k_max[kBlock];
   // Per-element results reduced after the (reduction-free, hence vectorisable) loop.
   alignas(64) double step_sq_out[kBlock], dissipation_out[kBlock], j_out[kBlock];
   // Corner forces of the block, scattered to the nodes after the vectorised loop.
@@ -91,7 +97,7 @@ inline __attribute__((always_inline)) void element_loop(const ElementGeometry& g
       edge1x[k] = x[b] - x[a], edge1y[k] = y[b] - y[a];
       edge2x[k] = x[c] - x[a], edge2y[k] = y[c] - y[a];
       if constexpr (kNodal) {
-        nodal_sm_mean[k] = (nodal_sm[a] + nodal_sm[b] + nodal_sm[c]) / 3.0;
+        nodal_sm_sum[k] = nodal_sm[a] + nodal_sm[b] + nodal_sm[c];
         const double kab = nodal_k[a] > nodal_k[b] ? nodal_k[a] : nodal_k[b];
         nodal_k_max[k] = kab > nodal_k[c] ? kab : nodal_k[c];
       }
@@ -108,9 +114,12 @@ inline __attribute__((always_inline)) void element_loop(const ElementGeometry& g
       const double log_j = ::log(j);
       const double j_minus_23 = ::exp(-2.0 / 3.0 * log_j);
       double mean_stress, bulk_modulus;
-      if constexpr (kNodal) {
-        const double j_minus_n = w_element > 0.0 ? ::exp(-n * log_j) : 1.0;
-        mean_stress = w_nodal * (nodal_sm_mean[k] + shift[e]) +
+      if constexpr (kVolumetric == Volumetric::kNodal) {  // w_element = 0
+        mean_stress = nodal_sm_sum[k] * cm::kThird + shift[e];
+        bulk_modulus = nodal_k_max[k] + k_stab;
+      } else if constexpr (kVolumetric == Volumetric::kBlend) {
+        const double j_minus_n = ::exp(-n * log_j);
+        mean_stress = w_nodal * (nodal_sm_sum[k] * cm::kThird + shift[e]) +
                       w_element * cm::tait_mean_stress(kappa, n, j_minus_n);
         bulk_modulus = w_nodal * (nodal_k_max[k] + k_stab) +
                        w_element * cm::tait_bulk_modulus(kappa, j_minus_n);
@@ -120,28 +129,32 @@ inline __attribute__((always_inline)) void element_loop(const ElementGeometry& g
         bulk_modulus = cm::tait_bulk_modulus(kappa, j_minus_n);
       }
       const cm::Mat2 cof = cm::cofactor(f);
-      const cm::Mat2 elastic = cm::elastic_piola(f, cof, j, mean_stress, mu, j_minus_23);
+      const double inv_j = 1.0 / j;  // one division for every term over J
+      const cm::Mat2 elastic = cm::elastic_piola_inv_j(f, cof, inv_j, mean_stress, mu, j_minus_23);
 
-      const double c_sq = cm::longitudinal_speed_sq(bulk_modulus, mu, rho0, j);
+      // c^2 = (K + 4/3 mu) / rho with rho = rho0 / J (continuum::longitudinal_speed_sq).
+      const double c_sq = (bulk_modulus + four_thirds_mu) * j * inv_rho0;
       const double c = std::sqrt(c_sq);
       const double h_sq = cm::smallest_altitude_sq(e1x, e1y, e2x, e2y);
 
-      // Viscosity: artificial (continuous in the compression measure z) plus Kelvin-Voigt.
+      // Viscosity: artificial (continuous in the compression measure z) plus Kelvin-Voigt. Its
+      // length: the smallest altitude (thesis) or that of the equilateral triangle of the
+      // current area, selected before the one square root.
       const cm::Mat2 f_prev{fxx[e], fxy[e], fyx[e], fyy[e]};
-      const double h_area = std::sqrt(sqrt3 * j * area0[e]);
-      const double h_visc = altitude_length * std::sqrt(h_sq) + (1.0 - altitude_length) * h_area;
+      const double h_visc = std::sqrt(smallest_altitude ? h_sq : sqrt3 * j * area0[e]);
       const double z = -h_visc * (log_j - log_j_prev[e]) / (dt * c);
       // The thesis's artificial viscosity is a shear viscosity; the continuous one acts on
       // compression alone, as a bulk viscosity of the same longitudinal strength (4/3 nu), so a
       // planar shock sees the same viscous stress but isochoric (shear) flow -- the rim's
       // instability -- sees only the physical eta (docs/model.md).
-      const double nu_art =
-          artificial_on * cm::artificial_viscosity(h_visc, rho0, j, c1, c2, c, z, ramp_inv);
+      const double nu_art = artificial_on * cm::artificial_viscosity_rho(h_visc, rho0 * inv_j, c1,
+                                                                         c2, c, z, ramp_inv);
       const double nu = eta + shear_share * nu_art;
       const double zeta = (1.0 - shear_share) * 4.0 / 3.0 * nu_art;
-      step_sq_out[k] = cm::stable_step_sq(h_sq, c_sq, 4.0 / 3.0 * nu + zeta, rho0, j);
+      step_sq_out[k] =
+          cm::stable_step_sq_kinematic(h_sq, c_sq, (4.0 / 3.0 * nu + zeta) * j * inv_rho0);
       const cm::Mat2 pv = cm::viscous_piola(f, f_prev, cof, nu, zeta, dt);
-      shear_out[e] = nu, bulk_out[e] = zeta;
+      shear_out[e] = static_cast<float>(nu), bulk_out[e] = static_cast<float>(zeta);
       // Work of the viscous stress over the step, trapezoidal in time: what the integrator sees
       // as nodal viscous forces times the nodal displacement increments.
       dissipation_out[k] =
@@ -151,7 +164,8 @@ inline __attribute__((always_inline)) void element_loop(const ElementGeometry& g
 
       fxx[e] = f[0], fxy[e] = f[1], fyx[e] = f[2], fyy[e] = f[3];
       log_j_prev[e] = log_j;
-      pxx[e] = pv[0], pxy[e] = pv[1], pyx[e] = pv[2], pyy[e] = pv[3];
+      pxx[e] = static_cast<float>(pv[0]), pxy[e] = static_cast<float>(pv[1]);
+      pyx[e] = static_cast<float>(pv[2]), pyy[e] = static_cast<float>(pv[3]);
 
       // Force on node a: -A0 P grad N_a; grad N1, grad N2 are the rows of Dm^-1.
       const double p00 = elastic[0] + pv[0], p01 = elastic[1] + pv[1];
@@ -192,10 +206,15 @@ __attribute__((target_clones("avx512f", "avx2", "default"))) void compute_elemen
   const double *dxx = g.dm_inv_xx.data(), *dxy = g.dm_inv_xy.data(), *dyx = g.dm_inv_yx.data(),
                *dyy = g.dm_inv_yy.data();
   bool all_valid = true;
-  if (p.nodal_mean_stress != nullptr)
-    element_loop<true>(g, x, y, p, begin, end, s, totals, node_fx, node_fy, all_valid);
+  if (p.nodal_mean_stress == nullptr)
+    element_loop<Volumetric::kElement>(g, x, y, p, begin, end, s, totals, node_fx, node_fy,
+                                       all_valid);
+  else if (p.element_weight == 0.0)
+    element_loop<Volumetric::kNodal>(g, x, y, p, begin, end, s, totals, node_fx, node_fy,
+                                     all_valid);
   else
-    element_loop<false>(g, x, y, p, begin, end, s, totals, node_fx, node_fy, all_valid);
+    element_loop<Volumetric::kBlend>(g, x, y, p, begin, end, s, totals, node_fx, node_fy,
+                                     all_valid);
 
   if (!all_valid && totals.bad_element < 0) {  // rare: recompute J to name the first offender
     for (std::size_t e = begin; e < end; ++e) {

@@ -19,10 +19,13 @@ struct ElementGeometry {
 
 // Element state carried from one force evaluation to the next.
 struct ElementState {
-  std::vector<double> f_xx, f_xy, f_yx, f_yy;      // F at the last evaluation (lags the viscosity)
-  std::vector<double> log_j;                       // ln J at the last evaluation
-  std::vector<double> pv_xx, pv_xy, pv_yx, pv_yy;  // viscous P at the last evaluation
-  std::vector<double> viscosity, bulk_viscosity;   // its shear nu and bulk zeta (Pa s)
+  std::vector<double> f_xx, f_xy, f_yx, f_yy;  // F at the last evaluation (lags the viscosity)
+  std::vector<double> log_j;                   // ln J at the last evaluation
+  // Viscous P at the last evaluation and its shear nu and bulk zeta (Pa s), in single precision:
+  // the dynamics never read them back (each evaluation computes P_v afresh from F and F_prev,
+  // which stay double); only the dissipation's trapezoidal sum and the stress diagnostics do.
+  std::vector<float> pv_xx, pv_xy, pv_yx, pv_yy;
+  std::vector<float> viscosity, bulk_viscosity;
   void resize(std::size_t elements);
   void reset_to_reference();  // F = I, ln J = 0, P_v = 0
 };
@@ -34,7 +37,8 @@ struct KernelParams {
   // 1 / ramp of the continuous switch (continuum::artificial_viscosity); huge = thesis switch.
   double ramp_inv = 5.0;
   // Length of the artificial viscosity: 1 = smallest altitude (thesis), 0 = sqrt(sqrt(3) area),
-  // the altitude of the equilateral triangle of the current area (does not vanish on slivers).
+  // the altitude of the equilateral triangle of the current area (does not vanish on slivers);
+  // one or the other (values above 0.5 select the smallest altitude).
   double altitude_length = 0.0;
   double eta = 0;  // Kelvin-Voigt shear viscosity, Pa s (on whenever dt > 0)
   // 1: the artificial viscosity is a shear viscosity (the thesis); 0: a bulk viscosity 4/3 nu.

@@ -1,5 +1,6 @@
 #include "nodal_pressure.hpp"
 
+#include <algorithm>
 #include <cmath>
 
 #include "continuum.hpp"
@@ -21,16 +22,37 @@ std::vector<double> reference_nodal_areas(const ElementGeometry& g, std::size_t 
   return v;
 }
 
-void accumulate_nodal_areas(const ElementGeometry& g, const double* x, const double* y,
-                            std::size_t begin, std::size_t end, double* area, double* j_element) {
+// The element passes follow the element kernel's pattern: indexed loads into small contiguous
+// buffers, a vectorised loop (the divisions eight at a time), then the scatter to the nodes in
+// element order. Built without FMA contraction (CMakeLists.txt), so every clone computes what the
+// scalar code did, bit for bit.
+namespace {
+constexpr std::size_t kBlock = 256;
+}  // namespace
+
+__attribute__((target_clones("avx512f", "avx2", "default"))) void accumulate_nodal_areas(
+    const ElementGeometry& g, const double* x, const double* y, std::size_t begin, std::size_t end,
+    double* area, double* j_element) {
   const int32_t *n0 = g.node0.data(), *n1 = g.node1.data(), *n2 = g.node2.data();
   const double* area0 = g.area0.data();
-  for (std::size_t e = begin; e < end; ++e) {
-    const int32_t a = n0[e], b = n1[e], c = n2[e];
-    const double current = 0.5 * ((x[b] - x[a]) * (y[c] - y[a]) - (y[b] - y[a]) * (x[c] - x[a]));
-    j_element[e] = current / area0[e];
-    const double third = current / 3.0;
-    area[a] += third, area[b] += third, area[c] += third;
+  alignas(64) double e1x[kBlock], e1y[kBlock], e2x[kBlock], e2y[kBlock], third[kBlock];
+  for (std::size_t block = begin; block < end; block += kBlock) {
+    const std::size_t count = std::min(kBlock, end - block);
+    for (std::size_t k = 0; k < count; ++k) {
+      const std::size_t e = block + k;
+      const int32_t a = n0[e], b = n1[e], c = n2[e];
+      e1x[k] = x[b] - x[a], e1y[k] = y[b] - y[a], e2x[k] = x[c] - x[a], e2y[k] = y[c] - y[a];
+    }
+#pragma GCC ivdep
+    for (std::size_t k = 0; k < count; ++k) {
+      const double current = 0.5 * (e1x[k] * e2y[k] - e1y[k] * e2x[k]);
+      j_element[block + k] = current / area0[block + k];
+      third[k] = current / 3.0;
+    }
+    for (std::size_t k = 0; k < count; ++k) {
+      const std::size_t e = block + k;
+      area[n0[e]] += third[k], area[n1[e]] += third[k], area[n2[e]] += third[k];
+    }
   }
 }
 
@@ -47,17 +69,29 @@ __attribute__((target_clones("avx512f", "avx2", "default"))) void nodal_tait_sta
   }
 }
 
-void accumulate_stabilization(const ElementGeometry& g, double beta_kappa, const double* nodal_j,
-                              const double* j_element, std::size_t begin, std::size_t end,
-                              double* s_element, double* q_sum) {
+__attribute__((target_clones("avx512f", "avx2", "default"))) void accumulate_stabilization(
+    const ElementGeometry& g, double beta_kappa, const double* nodal_j, const double* j_element,
+    std::size_t begin, std::size_t end, double* s_element, double* q_sum) {
   const int32_t *n0 = g.node0.data(), *n1 = g.node1.data(), *n2 = g.node2.data();
   const double* area0 = g.area0.data();
-  for (std::size_t e = begin; e < end; ++e) {
-    const int32_t a = n0[e], b = n1[e], c = n2[e];
-    const double s = beta_kappa * (j_element[e] - (nodal_j[a] + nodal_j[b] + nodal_j[c]) / 3.0);
-    s_element[e] = s;
-    const double share = area0[e] * s / 3.0;
-    q_sum[a] += share, q_sum[b] += share, q_sum[c] += share;
+  alignas(64) double j_sum[kBlock], share[kBlock];
+  for (std::size_t block = begin; block < end; block += kBlock) {
+    const std::size_t count = std::min(kBlock, end - block);
+    for (std::size_t k = 0; k < count; ++k) {
+      const std::size_t e = block + k;
+      j_sum[k] = nodal_j[n0[e]] + nodal_j[n1[e]] + nodal_j[n2[e]];
+    }
+#pragma GCC ivdep
+    for (std::size_t k = 0; k < count; ++k) {
+      const std::size_t e = block + k;
+      const double s = beta_kappa * (j_element[e] - j_sum[k] / 3.0);
+      s_element[e] = s;
+      share[k] = area0[e] * s / 3.0;
+    }
+    for (std::size_t k = 0; k < count; ++k) {
+      const std::size_t e = block + k;
+      q_sum[n0[e]] += share[k], q_sum[n1[e]] += share[k], q_sum[n2[e]] += share[k];
+    }
   }
 }
 
