@@ -42,13 +42,15 @@ constexpr std::size_t kVectorColumns = 3;
 constexpr const char* kH5Name = "result.h5";
 constexpr const char* kXdmfName = "result.xdmf";
 
-// Storage policy (see docs/results-format.md for the measurements). Below kMinChunkedBytes a
-// dataset is stored contiguous and uncompressed: compression would save a few KiB at the price of
-// a chunk index. Above it, chunks hold whole rows and about kTargetChunkBytes (inside the
-// 10 KiB - 1 MiB range where HDF5's chunk cache and index behave well). Byte shuffle before
-// deflate groups the sign/exponent bytes of the doubles, which is most of what compresses in
-// solver fields (without it the baseline run's file was 10 % larger and slower to write). Levels
-// 1-4 gave sizes within 0.5 %, so the cheapest: every write holds the process-wide HDF5 lock.
+// Storage policy (see docs/results-format.md for the measurements). Floating-point datasets
+// (fields, series, modes, coordinates) are contiguous and uncompressed: solver output carries
+// full-precision noise in its low bytes, so shuffle + deflate kept 0.78-0.87 of their size at
+// ~20x the CPU of writing them raw (a quarter of a grid point's CPU, for 18 % of its disk).
+// Integer datasets (connectivity) shrink to ~0.27 and are compressed: above kMinChunkedBytes,
+// chunks of whole rows of about kTargetChunkBytes (inside the 10 KiB - 1 MiB range where HDF5's
+// chunk cache and index behave well), byte shuffle then deflate at the cheapest level (levels
+// 1-4 gave sizes within 0.5 %; every write holds the process-wide HDF5 lock). Below
+// kMinChunkedBytes compression would save a few KiB at the price of a chunk index.
 constexpr std::size_t kMinChunkedBytes = 16 * 1024;
 constexpr std::size_t kTargetChunkBytes = 256 * 1024;
 constexpr unsigned kDeflateLevel = 1;
@@ -196,14 +198,16 @@ Shape matrix_shape(std::size_t rows, std::size_t cols) {
 
 // Creates and writes a dataset of file type `file_type` from `data` in memory type `mem_type`,
 // with the storage policy above, and its `units` attribute when units is not null.
+enum class Compression { kNone, kShuffleDeflate };
 void write_dataset(hid_t loc, const char* name, hid_t file_type, hid_t mem_type,
                    std::size_t element_bytes, Shape shape, const void* data, const char* units,
-                   const std::string& path) {
+                   Compression compression, const std::string& path) {
   const std::array<hsize_t, 2> dims{shape.rows, shape.cols};
   Hid space = checked(H5Screate_simple(shape.rank, dims.data(), nullptr), "create dataspace", path);
   Hid dcpl = object_plist(H5P_DATASET_CREATE, path);
   const std::size_t row_bytes = element_bytes * shape.cols;
-  if (shape.rows * row_bytes >= kMinChunkedBytes && deflate_available()) {
+  if (compression == Compression::kShuffleDeflate && shape.rows * row_bytes >= kMinChunkedBytes &&
+      deflate_available()) {
     const std::size_t chunk_rows =
         std::clamp<std::size_t>(kTargetChunkBytes / row_bytes, 1, shape.rows);
     const std::array<hsize_t, 2> chunk{chunk_rows, shape.cols};
@@ -233,12 +237,13 @@ void write_dataset(hid_t loc, const char* name, hid_t file_type, hid_t mem_type,
 void write_doubles(hid_t loc, const char* name, const double* data, Shape shape, const char* units,
                    const std::string& path) {
   write_dataset(loc, name, H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, sizeof(double), shape, data, units,
-                path);
+                Compression::kNone, path);
 }
 
 void write_int32s(hid_t loc, const char* name, const int32_t* data, Shape shape,
                   const std::string& path) {
   write_dataset(loc, name, H5T_STD_I32LE, H5T_NATIVE_INT32, sizeof(int32_t), shape, data, nullptr,
+                Compression::kShuffleDeflate,
                 path);
 }
 

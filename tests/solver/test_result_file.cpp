@@ -531,6 +531,9 @@ TEST(ResultFile, LayoutMatchesTheDocumentedContract) {
   EXPECT_EQ(tris.type_class, H5T_INTEGER);
   EXPECT_EQ(tris.type_size, 4u);
   EXPECT_EQ(tris.dims, (std::vector<hsize_t>{e, 3}));
+  // Connectivity compresses to ~0.27 and is written once: chunked, shuffle + deflate.
+  ASSERT_EQ(tris.layout, H5D_CHUNKED);
+  EXPECT_TRUE(tris.deflate && tris.shuffle);
   const auto loop = shape_of(f.id, "/mesh/boundary_nodes");
   EXPECT_EQ(loop.type_class, H5T_INTEGER);
   EXPECT_EQ(loop.type_size, 4u);
@@ -546,7 +549,7 @@ TEST(ResultFile, LayoutMatchesTheDocumentedContract) {
     EXPECT_EQ(s.type_size, 8u) << name;
     EXPECT_EQ(s.dims, std::vector<hsize_t>{4000}) << name;
     EXPECT_FALSE(s.units.empty()) << name << " has no units";
-    EXPECT_EQ(s.layout, H5D_CHUNKED) << name;  // 32 KB: long enough to compress
+    EXPECT_EQ(s.layout, H5D_CONTIGUOUS) << name;  // floating point: stored raw
   }
   EXPECT_EQ(shape_of(f.id, "/modes/time").dims, std::vector<hsize_t>{4000});
   EXPECT_EQ(shape_of(f.id, "/modes/amplitude").dims, (std::vector<hsize_t>{4000, 7}));
@@ -568,12 +571,10 @@ TEST(ResultFile, LayoutMatchesTheDocumentedContract) {
           nodal ? std::vector<hsize_t>{n, 3} : std::vector<hsize_t>{e};
       EXPECT_EQ(s.dims, dims) << name;
       EXPECT_TRUE(s.has_units) << name;
-      ASSERT_EQ(s.layout, H5D_CHUNKED) << name;
-      EXPECT_TRUE(s.deflate && s.shuffle) << name;
-      hsize_t chunk_bytes = 8;
-      for (hsize_t c : s.chunk) chunk_bytes *= c;
-      EXPECT_GE(chunk_bytes, 10u * 1024) << name;
-      EXPECT_LE(chunk_bytes, 1024u * 1024) << name;
+      // Solver fields keep 0.78-0.87 of their size under shuffle + deflate at ~20x the CPU of
+      // writing them raw (docs/results-format.md): stored contiguous and unfiltered.
+      EXPECT_EQ(s.layout, H5D_CONTIGUOUS) << name;
+      EXPECT_FALSE(s.deflate || s.shuffle) << name;
     }
   }
 }
