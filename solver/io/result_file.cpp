@@ -243,8 +243,7 @@ void write_doubles(hid_t loc, const char* name, const double* data, Shape shape,
 void write_int32s(hid_t loc, const char* name, const int32_t* data, Shape shape,
                   const std::string& path) {
   write_dataset(loc, name, H5T_STD_I32LE, H5T_NATIVE_INT32, sizeof(int32_t), shape, data, nullptr,
-                Compression::kShuffleDeflate,
-                path);
+                Compression::kShuffleDeflate, path);
 }
 
 // Scalar attribute, replacing an existing one of the same name (the root attributes are first
