@@ -48,13 +48,6 @@ constexpr Column<Record> figure(const char* name) {
   return {name, [](Stmt& s, int i, const Record& r) { bind_figure(s, i, field<Path...>(r)); },
           [](const Stmt& s, int c, Record& r) { field<Path...>(r) = read_figure(s, c); }};
 }
-// late_figure: the figures added by migrations 3 -> 5, stored like a figure but read as a plain
-// REAL (so a stored 'NaN' reads as 0, as they always have).
-template <typename Record, auto... Path>
-constexpr Column<Record> late_figure(const char* name) {
-  return {name, [](Stmt& s, int i, const Record& r) { bind_figure(s, i, field<Path...>(r)); },
-          [](const Stmt& s, int c, Record& r) { field<Path...>(r) = s.dbl(c); }};
-}
 // count: an integer of any width, stored as INTEGER.
 template <typename Record, auto... Path>
 constexpr Column<Record> count(const char* name) {
@@ -108,15 +101,15 @@ const std::array<Column<RS>, 32> kFigures = {{
     figure<RS, &RS::max_dt_s>("max_dt"),
     text<RS, &RS::status>("status"),
     text<RS, &RS::error>("error"),
-    late_figure<RS, &RS::kernel_time_s>("kernel_time"),
-    late_figure<RS, &RS::meshing_time_s>("meshing_time"),
+    figure<RS, &RS::kernel_time_s>("kernel_time"),
+    figure<RS, &RS::meshing_time_s>("meshing_time"),
     text<RS, &RS::mesh_cache>("mesh_cache"),
-    late_figure<RS, &RS::max_abar_filtered_first_cycle>("max_abar_filtered_first_cycle"),
-    late_figure<RS, &RS::max_abar_filtered>("max_abar_filtered"),
-    late_figure<RS, &RS::abar_end>("abar_end"),
-    late_figure<RS, &RS::abar_filtered_end>("abar_filtered_end"),
-    late_figure<RS, &RS::max_aspect_ratio>("max_aspect_ratio"),
-    late_figure<RS, &RS::aspect_ratio_above_10_s>("aspect_ratio_above_10"),
+    figure<RS, &RS::max_abar_filtered_first_cycle>("max_abar_filtered_first_cycle"),
+    figure<RS, &RS::max_abar_filtered>("max_abar_filtered"),
+    figure<RS, &RS::abar_end>("abar_end"),
+    figure<RS, &RS::abar_filtered_end>("abar_filtered_end"),
+    figure<RS, &RS::max_aspect_ratio>("max_aspect_ratio"),
+    figure<RS, &RS::aspect_ratio_above_10_s>("aspect_ratio_above_10"),
 }};
 
 // The decimated series a StoredSummary adds: heavy, so read only where they are needed.

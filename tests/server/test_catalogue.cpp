@@ -78,7 +78,7 @@ StoredSummary distinct_summary() {
   r.abar_end = 1.17;
   r.max_abar_filtered_first_cycle = 1.18;
   r.max_abar_filtered = 1.19;
-  r.abar_filtered_end = 1.20;
+  r.abar_filtered_end = NAN;  // a figure added by a migration: NaN survives too
   r.max_aspect_ratio = 1.21;
   r.aspect_ratio_above_10_s = 1.22;
   r.dominant_mode_end = 123;
