@@ -246,6 +246,24 @@ TEST(PhysicsValidation, BaselineEventTimesMatchTheThesis) {
 // Determinism: for a given thread count the run is bit-for-bit repeatable (fixed element ranges,
 // per-thread force arrays summed in thread order); across thread counts only the summation order
 // of the nodal forces differs, so results agree to round-off.
+// The energy left after the first pass (70 ns) with the default formulation is a converged
+// figure: 16.5k and 66k elements agree within the issue's 2 % (measured 0.3 %; 264k 1.478 J/m,
+// docs/verification.md). The inviscid model is not yet converged at 16.5k (1.599 -> 1.567 ->
+// 1.551 J/m on 16.5k / 66k / 264k): the issue's 1.589 J/m is its 16.5k figure.
+TEST(PhysicsValidation, EnergyAfterTheFirstPassConvergesUnderRefinement) {
+  auto retained = [](int elements) {
+    const RunResult r =
+        run_spec(spec_from(R"({"geometry":{"target_elements":)" + std::to_string(elements) +
+                           R"(},"run":{"end_time":7e-8,"output_interval":0}})"));
+    EXPECT_EQ(r.status, RunStatus::kCompleted) << r.error;
+    return r.history.kinetic_energy.back() + r.history.elastic_energy.back();
+  };
+  const double coarse = retained(16500), fine = retained(66000);
+  std::printf("energy after the first pass, default: 16.5k %.4f J/m, 66k %.4f J/m (%.2f %%)\n",
+              coarse, fine, 100 * (coarse - fine) / fine);
+  EXPECT_NEAR(coarse, fine, 0.02 * fine);
+}
+
 TEST(PhysicsValidation, ResultsAreDeterministicForAGivenThreadCount) {
   const auto spec1 = spec_from(R"({"geometry":{"target_elements":1500},
       "run":{"end_time":3e-8,"output_interval":0,"threads":1}})");
