@@ -11,10 +11,14 @@ namespace {
 // Measured (docs/deploy.md): ~67 MB fixed, ~0.85 kB per element at peak.
 constexpr double kFixedBytes = 67e6;
 constexpr double kBytesPerElement = 850;
-// History columns besides the modes (time, energies, A-bar, centre/rim figures, dt).
-constexpr double kHistoryColumns = 12;
-// A frame: 5 element fields + 2 node vector fields (nodes ~ elements / 2), doubles.
-constexpr double kFrameBytesPerElement = 5 * 8 + 0.5 * 2 * 2 * 8;
+// History columns besides the modes (time, energies, A-bar, centre/rim figures, dt, the
+// Delta-t-setting element: History::columns()).
+constexpr double kHistoryColumns = 18;
+// A frame, stored raw (docs/results-format.md): 6 element fields (J, aspect ratio, four
+// stresses) and 2 node vectors of 3 columns (nodes ~ elements / 2), doubles; plus the group's
+// and its 8 datasets' HDF5 object headers.
+constexpr double kFrameBytesPerElement = 6 * 8 + 0.5 * 2 * 3 * 8;
+constexpr double kFrameOverheadBytes = 16e3;
 // Mesh in the result file: nodes (2 doubles) and triangles (3 int32) per element, roughly.
 constexpr double kMeshBytesPerElement = 0.5 * 16 + 12;
 
@@ -65,8 +69,8 @@ ResourceEstimate estimate_resources(const v1::RunSpec& spec, double elements, do
   // The history is kept while running and copied once when the file is finished.
   e.memory_bytes = kFixedBytes + kBytesPerElement * elements + 2 * history_bytes +
                    kFrameBytesPerElement * elements;
-  e.disk_bytes =
-      frames * kFrameBytesPerElement * elements + history_bytes + kMeshBytesPerElement * elements;
+  e.disk_bytes = frames * (kFrameBytesPerElement * elements + kFrameOverheadBytes) + history_bytes +
+                 kMeshBytesPerElement * elements;
   return e;
 }
 
