@@ -11,21 +11,21 @@
 extern "C" {
 __attribute__((simd("notinbranch"))) double exp(double) noexcept;
 __attribute__((simd("notinbranch"))) double log(double) noexcept;
+__attribute__((simd("notinbranch"))) double cbrt(double) noexcept;
 }
 
 namespace softshock {
 
 void ElementState::resize(std::size_t elements) {
-  for (auto* v : {&f_xx, &f_xy, &f_yx, &f_yy, &log_j}) v->assign(elements, 0.0);
+  for (auto* v : {&f_xx, &f_xy, &f_yx, &f_yy}) v->assign(elements, 0.0);
   for (auto* v : {&pv_xx, &pv_xy, &pv_yx, &pv_yy, &viscosity, &bulk_viscosity})
     v->assign(elements, 0.0f);
   reset_to_reference();
 }
 
 void ElementState::reset_to_reference() {
-  for (std::size_t e = 0; e < log_j.size(); ++e) {
+  for (std::size_t e = 0; e < f_xx.size(); ++e) {
     f_xx[e] = 1.0, f_xy[e] = 0.0, f_yx[e] = 0.0, f_yy[e] = 1.0;
-    log_j[e] = 0.0;
     pv_xx[e] = pv_xy[e] = pv_yx[e] = pv_yy[e] = 0.0f;
     viscosity[e] = bulk_viscosity[e] = 0.0f;
   }
@@ -72,7 +72,6 @@ inline __attribute__((always_inline)) void element_loop(const ElementGeometry& g
   const double *dxx = g.dm_inv_xx.data(), *dxy = g.dm_inv_xy.data(), *dyx = g.dm_inv_yx.data(),
                *dyy = g.dm_inv_yy.data(), *area0 = g.area0.data();
   double *fxx = s.f_xx.data(), *fxy = s.f_xy.data(), *fyx = s.f_yx.data(), *fyy = s.f_yy.data();
-  double* log_j_prev = s.log_j.data();
   float *pxx = s.pv_xx.data(), *pxy = s.pv_xy.data(), *pyx = s.pv_yx.data(), *pyy = s.pv_yy.data();
 
   // Edge vectors (and, with nodal pressures, the nodes' Tait state) are gathered per block into
@@ -110,9 +109,17 @@ inline __attribute__((always_inline)) void element_loop(const ElementGeometry& g
       const cm::Mat2 f = cm::deformation_gradient(e1x, e1y, e2x, e2y, dm_inv);
       const double j = cm::det(f);
       j_out[k] = j;
-      // One logarithm feeds J^-n, J^-2/3 and the viscosity's ln(J / J_prev).
-      const double log_j = ::log(j);
-      const double j_minus_23 = ::exp(-2.0 / 3.0 * log_j);
+      const cm::Mat2 cof = cm::cofactor(f);
+      const double inv_j = 1.0 / j;  // one division for every term over J
+      // J^-2/3: with nodal pressures the element needs no J^-n, so one cube root (libmvec) in
+      // place of a logarithm and an exponential; otherwise one logarithm feeds J^-n and J^-2/3.
+      double log_j = 0.0, j_minus_23;
+      if constexpr (kVolumetric == Volumetric::kNodal) {
+        j_minus_23 = ::cbrt(inv_j * inv_j);
+      } else {
+        log_j = ::log(j);
+        j_minus_23 = ::exp(-2.0 / 3.0 * log_j);
+      }
       double mean_stress, bulk_modulus;
       if constexpr (kVolumetric == Volumetric::kNodal) {  // w_element = 0
         mean_stress = nodal_sm_sum[k] * cm::kThird + shift[e];
@@ -128,8 +135,6 @@ inline __attribute__((always_inline)) void element_loop(const ElementGeometry& g
         mean_stress = cm::tait_mean_stress(kappa, n, j_minus_n);
         bulk_modulus = cm::tait_bulk_modulus(kappa, j_minus_n);
       }
-      const cm::Mat2 cof = cm::cofactor(f);
-      const double inv_j = 1.0 / j;  // one division for every term over J
       const cm::Mat2 elastic = cm::elastic_piola_inv_j(f, cof, inv_j, mean_stress, mu, j_minus_23);
 
       // c^2 = (K + 4/3 mu) / rho with rho = rho0 / J (continuum::longitudinal_speed_sq).
@@ -142,7 +147,8 @@ inline __attribute__((always_inline)) void element_loop(const ElementGeometry& g
       // current area, selected before the one square root.
       const cm::Mat2 f_prev{fxx[e], fxy[e], fyx[e], fyy[e]};
       const double h_visc = std::sqrt(smallest_altitude ? h_sq : sqrt3 * j * area0[e]);
-      const double z = -h_visc * (log_j - log_j_prev[e]) / (dt * c);
+      // ln(J / J_prev) from J_prev = det(F_prev), bit for bit the J of the last evaluation.
+      const double z = -h_visc * cm::log_ratio(j, cm::det(f_prev)) / (dt * c);
       // The thesis's artificial viscosity is a shear viscosity; the continuous one acts on
       // compression alone, as a bulk viscosity of the same longitudinal strength (4/3 nu), so a
       // planar shock sees the same viscous stress but isochoric (shear) flow -- the rim's
@@ -163,7 +169,6 @@ inline __attribute__((always_inline)) void element_loop(const ElementGeometry& g
            (pv[2] + pyx[e]) * (f[2] - f_prev[2]) + (pv[3] + pyy[e]) * (f[3] - f_prev[3]));
 
       fxx[e] = f[0], fxy[e] = f[1], fyx[e] = f[2], fyy[e] = f[3];
-      log_j_prev[e] = log_j;
       pxx[e] = static_cast<float>(pv[0]), pxy[e] = static_cast<float>(pv[1]);
       pyx[e] = static_cast<float>(pv[2]), pyy[e] = static_cast<float>(pv[3]);
 
