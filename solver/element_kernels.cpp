@@ -11,21 +11,21 @@
 extern "C" {
 __attribute__((simd("notinbranch"))) double exp(double) noexcept;
 __attribute__((simd("notinbranch"))) double log(double) noexcept;
+__attribute__((simd("notinbranch"))) double cbrt(double) noexcept;
 }
 
 namespace softshock {
 
 void ElementState::resize(std::size_t elements) {
-  for (auto* v : {&f_xx, &f_xy, &f_yx, &f_yy, &log_j}) v->assign(elements, 0.0);
+  for (auto* v : {&f_xx, &f_xy, &f_yx, &f_yy}) v->assign(elements, 0.0);
   for (auto* v : {&pv_xx, &pv_xy, &pv_yx, &pv_yy, &viscosity, &bulk_viscosity})
     v->assign(elements, 0.0f);
   reset_to_reference();
 }
 
 void ElementState::reset_to_reference() {
-  for (std::size_t e = 0; e < log_j.size(); ++e) {
+  for (std::size_t e = 0; e < f_xx.size(); ++e) {
     f_xx[e] = 1.0, f_xy[e] = 0.0, f_yx[e] = 0.0, f_yy[e] = 1.0;
-    log_j[e] = 0.0;
     pv_xx[e] = pv_xy[e] = pv_yx[e] = pv_yy[e] = 0.0f;
     viscosity[e] = bulk_viscosity[e] = 0.0f;
   }
@@ -72,7 +72,6 @@ inline __attribute__((always_inline)) void element_loop(const ElementGeometry& g
   const double *dxx = g.dm_inv_xx.data(), *dxy = g.dm_inv_xy.data(), *dyx = g.dm_inv_yx.data(),
                *dyy = g.dm_inv_yy.data(), *area0 = g.area0.data();
   double *fxx = s.f_xx.data(), *fxy = s.f_xy.data(), *fyx = s.f_yx.data(), *fyy = s.f_yy.data();
-  double* log_j_prev = s.log_j.data();
   float *pxx = s.pv_xx.data(), *pxy = s.pv_xy.data(), *pyx = s.pv_yx.data(), *pyy = s.pv_yy.data();
 
   // Edge vectors (and, with nodal pressures, the nodes' Tait state) are gathered per block into
@@ -110,9 +109,12 @@ inline __attribute__((always_inline)) void element_loop(const ElementGeometry& g
       const cm::Mat2 f = cm::deformation_gradient(e1x, e1y, e2x, e2y, dm_inv);
       const double j = cm::det(f);
       j_out[k] = j;
-      // One logarithm feeds J^-n, J^-2/3 and the viscosity's ln(J / J_prev).
-      const double log_j = ::log(j);
-      const double j_minus_23 = ::exp(-2.0 / 3.0 * log_j);
+      const cm::Mat2 cof = cm::cofactor(f);
+      // J^-2/3 (below): with nodal pressures the element needs no J^-n, so one cube root
+      // (libmvec) of 1/J^2 in place of a logarithm and an exponential; otherwise one logarithm
+      // feeds J^-n and J^-2/3.
+      double log_j = 0.0;
+      if constexpr (kVolumetric != Volumetric::kNodal) log_j = ::log(j);
       double mean_stress, bulk_modulus;
       if constexpr (kVolumetric == Volumetric::kNodal) {  // w_element = 0
         mean_stress = nodal_sm_sum[k] * cm::kThird + shift[e];
@@ -128,32 +130,51 @@ inline __attribute__((always_inline)) void element_loop(const ElementGeometry& g
         mean_stress = cm::tait_mean_stress(kappa, n, j_minus_n);
         bulk_modulus = cm::tait_bulk_modulus(kappa, j_minus_n);
       }
-      const cm::Mat2 cof = cm::cofactor(f);
-      const double inv_j = 1.0 / j;  // one division for every term over J
-      const cm::Mat2 elastic = cm::elastic_piola_inv_j(f, cof, inv_j, mean_stress, mu, j_minus_23);
-
       // c^2 = (K + 4/3 mu) / rho with rho = rho0 / J (continuum::longitudinal_speed_sq).
       const double c_sq = (bulk_modulus + four_thirds_mu) * j * inv_rho0;
-      const double c = std::sqrt(c_sq);
-      const double h_sq = cm::smallest_altitude_sq(e1x, e1y, e2x, e2y);
+
+      // Five quotients share one division: 1/J, 1/(longest edge)^2 (the smallest altitude),
+      // 1/(J + J_prev) (ln(J / J_prev)), 1/(J_prev dt) (the velocity gradient), 1/(dt c^2) (z).
+      // Each is 1/(product of all five) times the other four: a few ulp, and (SI units; the
+      // product ~1e-26 at 16.5k elements) far from under- or overflow for any mesh above a
+      // nanometre.
+      const cm::Mat2 f_prev{fxx[e], fxy[e], fyx[e], fyy[e]};
+      const double j_prev = cm::det(f_prev);  // bit for bit the J of the last evaluation
+      const double l_sq = cm::longest_edge_sq(e1x, e1y, e2x, e2y);
+      const double den_u = j + j_prev, den_v = j_prev * dt, den_z = dt * c_sq;
+      const double p_a = j * l_sq, p_b = den_u * den_v;
+      const double ab = p_a * p_b, ac = p_a * den_z, bc = p_b * den_z;
+      const double r = 1.0 / (ab * den_z);
+      const double inv_j = r * bc * l_sq, inv_l_sq = r * bc * j;
+      const double inv_u = r * ac * den_v, inv_v = r * ac * den_u, inv_z = r * ab;
+
+      double j_minus_23;
+      if constexpr (kVolumetric == Volumetric::kNodal)
+        j_minus_23 = ::cbrt(inv_j * inv_j);
+      else
+        j_minus_23 = ::exp(-2.0 / 3.0 * log_j);
+      const cm::Mat2 elastic = cm::elastic_piola_inv_j(f, cof, inv_j, mean_stress, mu, j_minus_23);
+
+      const double twice_area = e1x * e2y - e1y * e2x;
+      const double h_sq = twice_area * twice_area * inv_l_sq;  // smallest altitude squared
 
       // Viscosity: artificial (continuous in the compression measure z) plus Kelvin-Voigt. Its
-      // length: the smallest altitude (thesis) or that of the equilateral triangle of the
-      // current area, selected before the one square root.
-      const cm::Mat2 f_prev{fxx[e], fxy[e], fyx[e], fyy[e]};
-      const double h_visc = std::sqrt(smallest_altitude ? h_sq : sqrt3 * j * area0[e]);
-      const double z = -h_visc * (log_j - log_j_prev[e]) / (dt * c);
+      // length h: the smallest altitude (thesis) or that of the equilateral triangle of the
+      // current area. Only h c enters: z = -h ln(J / J_prev) / (dt c) = -h c ln(..) / (dt c^2)
+      // and nu = 3/4 h rho c (...), so one square root gives it.
+      const double hc = std::sqrt((smallest_altitude ? h_sq : sqrt3 * j * area0[e]) * c_sq);
+      const double z = -hc * cm::log_ratio_u((j - j_prev) * inv_u) * inv_z;
       // The thesis's artificial viscosity is a shear viscosity; the continuous one acts on
       // compression alone, as a bulk viscosity of the same longitudinal strength (4/3 nu), so a
       // planar shock sees the same viscous stress but isochoric (shear) flow -- the rim's
       // instability -- sees only the physical eta (docs/model.md).
-      const double nu_art = artificial_on * cm::artificial_viscosity_rho(h_visc, rho0 * inv_j, c1,
-                                                                         c2, c, z, ramp_inv);
+      const double nu_art =
+          artificial_on * cm::artificial_viscosity_hc(hc, rho0 * inv_j, c1, c2, z, ramp_inv);
       const double nu = eta + shear_share * nu_art;
       const double zeta = (1.0 - shear_share) * 4.0 / 3.0 * nu_art;
       step_sq_out[k] =
           cm::stable_step_sq_kinematic(h_sq, c_sq, (4.0 / 3.0 * nu + zeta) * j * inv_rho0);
-      const cm::Mat2 pv = cm::viscous_piola(f, f_prev, cof, nu, zeta, dt);
+      const cm::Mat2 pv = cm::viscous_piola_inv(f, f_prev, cof, nu, zeta, inv_v);
       shear_out[e] = static_cast<float>(nu), bulk_out[e] = static_cast<float>(zeta);
       // Work of the viscous stress over the step, trapezoidal in time: what the integrator sees
       // as nodal viscous forces times the nodal displacement increments.
@@ -163,7 +184,6 @@ inline __attribute__((always_inline)) void element_loop(const ElementGeometry& g
            (pv[2] + pyx[e]) * (f[2] - f_prev[2]) + (pv[3] + pyy[e]) * (f[3] - f_prev[3]));
 
       fxx[e] = f[0], fxy[e] = f[1], fyx[e] = f[2], fyy[e] = f[3];
-      log_j_prev[e] = log_j;
       pxx[e] = static_cast<float>(pv[0]), pxy[e] = static_cast<float>(pv[1]);
       pyx[e] = static_cast<float>(pv[2]), pyy[e] = static_cast<float>(pv[3]);
 

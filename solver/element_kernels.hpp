@@ -20,14 +20,13 @@ struct ElementGeometry {
 // Element state carried from one force evaluation to the next.
 struct ElementState {
   std::vector<double> f_xx, f_xy, f_yx, f_yy;  // F at the last evaluation (lags the viscosity)
-  std::vector<double> log_j;                   // ln J at the last evaluation
   // Viscous P at the last evaluation and its shear nu and bulk zeta (Pa s), in single precision:
   // the dynamics never read them back (each evaluation computes P_v afresh from F and F_prev,
   // which stay double); only the dissipation's trapezoidal sum and the stress diagnostics do.
   std::vector<float> pv_xx, pv_xy, pv_yx, pv_yy;
   std::vector<float> viscosity, bulk_viscosity;
   void resize(std::size_t elements);
-  void reset_to_reference();  // F = I, ln J = 0, P_v = 0
+  void reset_to_reference();  // F = I, P_v = 0
 };
 
 struct KernelParams {
