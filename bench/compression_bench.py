@@ -3,7 +3,7 @@
 
 Reads the field frames of a result file (e.g. the baseline disk to t-bar = 4) and writes them
 again with h5py (the same libhdf5 and zlib as softshock) under several filter settings, chunked
-as solver/io/result_file.cpp chunks them (rows of ~256 KiB), and prints per setting the
+as solver/io/result_writer.cpp chunks them (rows of ~256 KiB), and prints per setting the
 file size and the median write time per frame (CPU time of this process: robust to other load).
 
     build/solver/softshock-solve --spec SPEC --out out/t4 --quiet

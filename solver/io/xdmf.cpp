@@ -1,6 +1,6 @@
 // The XDMF 3 companion of result.h5: light XML that points into the HDF5 file, so ParaView
 // (and meshio) read the fields without a converter. The document is built as a string here;
-// result_file.cpp writes it durably next to result.h5.
+// result_writer.cpp writes it durably next to result.h5.
 #include <array>
 #include <charconv>
 #include <cstddef>

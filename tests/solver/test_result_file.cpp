@@ -541,7 +541,7 @@ TEST(ResultFile, LayoutMatchesTheDocumentedContract) {
   EXPECT_EQ(loop.layout, H5D_CONTIGUOUS);  // small: not worth a chunk index
 
   // Every series: float64, T samples, a known unit. A new History column needs its unit in
-  // series_units() (solver/io/result_file.cpp) and a line in docs/results-format.md.
+  // series_units() (solver/io/result_writer.cpp) and a line in docs/results-format.md.
   const History names_only;
   for (const auto& [name, column] : names_only.columns()) {
     const auto s = shape_of(f.id, "/timeseries/" + name);
