@@ -61,5 +61,4 @@ Hid file_access_plist(const std::string& path) {
   return fapl;
 }
 
-
 }  // namespace softshock::h5

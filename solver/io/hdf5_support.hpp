@@ -90,7 +90,6 @@ class Hid {
 Hid checked(hid_t id, const std::string& what, const std::string& path);
 void checked(herr_t rc, const std::string& what, const std::string& path);
 
-
 // File access properties: close everything still open with the file (so H5Fclose really
 // releases it before the fsync and rename), and use file locks where the filesystem has them
 // without failing where it has none (NFS without lockd).

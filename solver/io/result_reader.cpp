@@ -1,7 +1,5 @@
 // HDF5 result files, reading: ResultReader, for files of every format_version
 // (docs/results-format.md).
-#include "solver/io/result_file.hpp"
-
 #include <fcntl.h>
 #include <hdf5.h>
 #include <unistd.h>
@@ -20,6 +18,7 @@
 
 #include "solver/io/durable_file.hpp"
 #include "solver/io/hdf5_support.hpp"
+#include "solver/io/result_file.hpp"
 
 namespace softshock {
 
@@ -340,6 +339,5 @@ std::vector<double> ResultReader::field(std::size_t frame, const std::string& na
   v.resize(2 * n);
   return v;
 }
-
 
 }  // namespace softshock

@@ -1,8 +1,6 @@
 // HDF5 result files, writing: ResultWriter (temporary file, then flush + fsync + rename) and
 // link_result_files. The layout is a contract with users: docs/results-format.md describes it,
 // and a change here needs a change there (and a new format_version when it is not an addition).
-#include "solver/io/result_file.hpp"
-
 #include <fcntl.h>
 #include <hdf5.h>
 #include <unistd.h>
@@ -21,6 +19,7 @@
 
 #include "solver/io/durable_file.hpp"
 #include "solver/io/hdf5_support.hpp"
+#include "solver/io/result_file.hpp"
 
 namespace softshock {
 
@@ -175,7 +174,6 @@ void write_double_attr(hid_t obj, const char* name, double value, const std::str
   checked(H5Awrite(attr.get(), H5T_NATIVE_DOUBLE, &value), std::string("write attribute ") + name,
           path);
 }
-
 
 }  // namespace
 
@@ -420,6 +418,5 @@ std::string ResultWriter::h5_path() const {
 std::string ResultWriter::xdmf_path() const {
   return impl_->final_xdmf.string();
 }
-
 
 }  // namespace softshock
