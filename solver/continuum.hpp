@@ -46,6 +46,31 @@ inline double tait_bulk_modulus(double kappa, double j_pow_minus_n) {
   return kappa * j_pow_minus_n;
 }
 
+// Stabilisation of the average nodal pressure element's element-level volume modes
+// (nodal_pressure.hpp, docs/model.md "Element"), per unit reference area:
+//   W_stab = beta kappa (J_e - Jbar)^2 / (2 J_e),
+// J_e the element's J and Jbar the mean of its nodes' J. For a small discrepancy it is the
+// quadratic penalty beta kappa (J_e - Jbar)^2 / 2 (to first order in J - 1); unlike it, it grows
+// without bound as J_e -> 0, so no finite energy crushes an element whose nodes keep their area
+// (a strong pulse did that to rim elements with the quadratic form). With rho = Jbar / J_e:
+inline double stabilization_energy(double beta_kappa, double j_element, double j_bar) {
+  const double discrepancy = j_element - j_bar;
+  return 0.5 * beta_kappa * discrepancy * discrepancy / j_element;
+}
+// dW_stab/dJ_e = beta kappa (1 - rho^2) / 2: the element's mean stress (tension positive).
+inline double stabilization_element_stress(double beta_kappa, double rho) {
+  return 0.5 * beta_kappa * (1.0 - rho * rho);
+}
+// -dW_stab/dJbar = beta kappa (1 - rho): what the element passes to its nodes (a third each).
+inline double stabilization_nodal_share(double beta_kappa, double rho) {
+  return beta_kappa * (1.0 - rho);
+}
+// Its tangent bulk modulus J_e d(stress)/dJ_e = beta kappa rho^2, from the stress s alone:
+// beta kappa - 2 s (beta kappa at rho = 1; it stiffens as the element is crushed).
+inline double stabilization_bulk_modulus(double beta_kappa, double element_stress) {
+  return beta_kappa - 2.0 * element_stress;
+}
+
 // Neo-Hookean deviatoric energy mu/2 (I1 J^-2/3 - 3).
 inline double neo_hookean_energy(double mu, double i1, double j_pow_minus_two_thirds) {
   return 0.5 * mu * (i1 * j_pow_minus_two_thirds - 3.0);

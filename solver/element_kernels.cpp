@@ -63,7 +63,7 @@ inline __attribute__((always_inline)) void element_loop(const ElementGeometry& g
   const double* nodal_sm = p.nodal_mean_stress;
   const double* nodal_k = p.nodal_bulk_modulus;
   const double* shift = p.element_stress_shift;
-  const double k_stab = p.stabilization_bulk_modulus;
+  const double beta_kappa = p.stabilization_beta_kappa;
   const double sqrt3 = std::sqrt(3.0);
 
   const int32_t* node0 = g.node0.data();
@@ -118,13 +118,14 @@ inline __attribute__((always_inline)) void element_loop(const ElementGeometry& g
       double mean_stress, bulk_modulus;
       if constexpr (kVolumetric == Volumetric::kNodal) {  // w_element = 0
         mean_stress = nodal_sm_sum[k] * cm::kThird + shift[e];
-        bulk_modulus = nodal_k_max[k] + k_stab;
+        bulk_modulus = nodal_k_max[k] + cm::stabilization_bulk_modulus(beta_kappa, shift[e]);
       } else if constexpr (kVolumetric == Volumetric::kBlend) {
         const double j_minus_n = ::exp(-n * log_j);
         mean_stress = w_nodal * (nodal_sm_sum[k] * cm::kThird + shift[e]) +
                       w_element * cm::tait_mean_stress(kappa, n, j_minus_n);
-        bulk_modulus = w_nodal * (nodal_k_max[k] + k_stab) +
-                       w_element * cm::tait_bulk_modulus(kappa, j_minus_n);
+        bulk_modulus =
+            w_nodal * (nodal_k_max[k] + cm::stabilization_bulk_modulus(beta_kappa, shift[e])) +
+            w_element * cm::tait_bulk_modulus(kappa, j_minus_n);
       } else {
         const double j_minus_n = ::exp(-n * log_j);
         mean_stress = cm::tait_mean_stress(kappa, n, j_minus_n);

@@ -47,9 +47,10 @@ struct KernelParams {
   const double* nodal_mean_stress = nullptr;
   const double* nodal_bulk_modulus = nullptr;
   // Stabilisation of the nodal-pressure element (nodal_pressure.hpp): per-element stress s_e
-  // added to the nodal mean, and beta kappa added to the bulk modulus of the stable step.
+  // added to the nodal mean, and its tangent modulus beta kappa - 2 s_e (continuum.hpp) added to
+  // the bulk modulus of the stable step.
   const double* element_stress_shift = nullptr;
-  double stabilization_bulk_modulus = 0.0;
+  double stabilization_beta_kappa = 0.0;
   double element_weight = 1.0;
   double dt = 0;  // the step that led from the stored state to the current positions; 0 = none
 };

@@ -84,9 +84,9 @@ __attribute__((target_clones("avx512f", "avx2", "default"))) void accumulate_sta
 #pragma GCC ivdep
     for (std::size_t k = 0; k < count; ++k) {
       const std::size_t e = block + k;
-      const double s = beta_kappa * (j_element[e] - j_sum[k] / 3.0);
-      s_element[e] = s;
-      share[k] = area0[e] * s / 3.0;
+      const double rho = j_sum[k] / (3.0 * j_element[e]);  // Jbar_e / J_e
+      s_element[e] = continuum::stabilization_element_stress(beta_kappa, rho);
+      share[k] = area0[e] * continuum::stabilization_nodal_share(beta_kappa, rho) / 3.0;
     }
     for (std::size_t k = 0; k < count; ++k) {
       const std::size_t e = block + k;
@@ -121,8 +121,9 @@ NodalPressureState nodal_pressure_state(const ElementGeometry& g,
   out.element_mean_stress.resize(ne);
   for (std::size_t e = 0; e < ne; ++e) {
     const double je = j_element[e];
+    const double jbar = (nodal_j[g.node0[e]] + nodal_j[g.node1[e]] + nodal_j[g.node2[e]]) / 3.0;
     out.stored_energy +=
-        w_nodal * 0.5 * g.area0[e] * s[e] * s[e] / (beta * kappa > 0 ? beta * kappa : 1.0);
+        w_nodal * g.area0[e] * continuum::stabilization_energy(beta * kappa, je, jbar);
     const double nodal_mean = (sm[g.node0[e]] + sm[g.node1[e]] + sm[g.node2[e]]) / 3.0 + s[e];
     out.element_mean_stress[e] =
         w_nodal * nodal_mean +

@@ -6,11 +6,13 @@
 // mean of its three nodes'. The stored energy sum_a V_a W_vol(J_a) depends on nodal areas only,
 // so P1 triangles no longer lock -- but element areas may then checkerboard at fixed nodal areas
 // (seen as alternating J at the rim of a soft gel). The stabilisation energy
-//   W_stab = sum_e A_e (beta kappa / 2) (J_e - Jbar_e)^2,  Jbar_e = mean of its nodes' J_a,
+//   W_stab = sum_e A_e beta kappa (J_e - Jbar_e)^2 / (2 J_e),  Jbar_e = mean of its nodes' J_a,
 // penalises only that discrepancy, which is second order in h for a smooth field, so it does not
-// lock. Its forces, like the nodal pressure's, are element "mean stresses":
-//   s_e = beta kappa (J_e - Jbar_e), less the mean over the element's nodes of
-//   q_a = sum_{e around a} A_e s_e / (3 V_a),
+// lock; it grows without bound as J_e -> 0, so an element cannot be crushed at finite energy
+// (continuum.hpp). Its forces, like the nodal pressure's, are element "mean stresses": with
+// rho_e = Jbar_e / J_e,
+//   s_e = beta kappa (1 - rho_e^2) / 2, less the mean over the element's nodes of
+//   q_a = sum_{e around a} A_e beta kappa (1 - rho_e) / (3 V_a),
 // so the element kernel needs per node sigma_m(J_a) - q_a and per element s_e: the forces are the
 // exact gradient of the stored energy and the energy balance still closes.
 #pragma once
@@ -36,8 +38,8 @@ void nodal_tait_state(double kappa, double tait_n, const double* reference_area,
                       std::size_t begin, std::size_t end, double* nodal_j, double* mean_stress,
                       double* bulk_modulus);
 
-// Pass 3 (elements [begin, end)): s_e = beta_kappa (J_e - Jbar_e), and A_e s_e / 3 added to
-// each of the element's nodes' q_sum.
+// Pass 3 (elements [begin, end)): s_e = beta_kappa (1 - rho_e^2) / 2, and
+// A_e beta_kappa (1 - rho_e) / 3 added to each of the element's nodes' q_sum.
 void accumulate_stabilization(const ElementGeometry& geometry, double beta_kappa,
                               const double* nodal_j, const double* j_element, std::size_t begin,
                               std::size_t end, double* s_element, double* q_sum);

@@ -234,7 +234,7 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
     params.nodal_bulk_modulus = nodal_k.data();
     params.element_stress_shift = s_element.data();
     params.element_weight = problem.element.element_weight;
-    params.stabilization_bulk_modulus = beta_kappa;
+    params.stabilization_beta_kappa = beta_kappa;
   }
 
   // One step's node and element work: the predictor moves the nodes by dt (dt = 0: evaluate at

@@ -185,7 +185,7 @@ NodalRun nodal_forces(KernelFixture& fx, const std::vector<double>& x, const std
   subtract_stabilization(v0.data(), q.data(), 0, nn, sm.data());
   KernelParams p = fx.p;
   p.nodal_mean_stress = sm.data(), p.nodal_bulk_modulus = k.data();
-  p.element_stress_shift = se.data(), p.stabilization_bulk_modulus = beta * fx.p.kappa;
+  p.element_stress_shift = se.data(), p.stabilization_beta_kappa = beta * fx.p.kappa;
   p.element_weight = 0.0;
   NodalRun r;
   r.fx.assign(nn, 0.0), r.fy.assign(nn, 0.0);
@@ -284,6 +284,43 @@ TEST(AverageNodalPressure, StabilizationPenalisesOnlyTheElementLevelMode) {
   while (fx.on_boundary(interior)) ++interior;
   x[interior] += 0.05e-6;
   EXPECT_GT(stab_energy(x, y), 0.0);
+}
+
+// The stabilisation's pointwise law (continuum.hpp): its element stress, nodal share and tangent
+// modulus are the derivatives of its energy (central differences, step 1e-6: truncation ~1e-12
+// relative); for a small discrepancy it is the quadratic penalty beta kappa (J_e - Jbar)^2 / 2;
+// and it is a barrier: crushing an element whose nodes keep their area costs unbounded energy
+// (the quadratic form caps it at beta kappa / 2, which a strong pulse paid at the rim).
+TEST(AverageNodalPressure, StabilizationIsABarrierAgainstCrushedElements) {
+  namespace cm = continuum;
+  const double bk = 4e7, h = 1e-6;
+  for (double je : {0.3, 0.97, 1.0, 1.2}) {
+    for (double jbar : {0.9, 1.0, 1.05}) {
+      const double rho = jbar / je;
+      const double s = cm::stabilization_element_stress(bk, rho);
+      const double dw_dje = (cm::stabilization_energy(bk, je + h, jbar) -
+                             cm::stabilization_energy(bk, je - h, jbar)) /
+                            (2 * h);
+      const double dw_djbar = (cm::stabilization_energy(bk, je, jbar + h) -
+                               cm::stabilization_energy(bk, je, jbar - h)) /
+                              (2 * h);
+      EXPECT_NEAR(s, dw_dje, 1e-7 * bk) << je << " " << jbar;
+      EXPECT_NEAR(cm::stabilization_nodal_share(bk, rho), -dw_djbar, 1e-7 * bk);
+      const double ds_dje = (cm::stabilization_element_stress(bk, jbar / (je + h)) -
+                             cm::stabilization_element_stress(bk, jbar / (je - h))) /
+                            (2 * h);
+      EXPECT_NEAR(cm::stabilization_bulk_modulus(bk, s), je * ds_dje, 1e-7 * bk);
+    }
+  }
+  // Small discrepancy: the quadratic penalty to relative order |J_e - Jbar| (here 1e-3).
+  const double quadratic = 0.5 * bk * 1e-3 * 1e-3;
+  EXPECT_NEAR(cm::stabilization_energy(bk, 1.001, 1.0), quadratic, 2e-3 * quadratic);
+  // Barrier: at J_e = 1e-3 under nodes at J = 1 it costs ~500 beta kappa, not the quadratic's
+  // beta kappa / 2, and it keeps growing as (1 - J_e)^2 / J_e.
+  EXPECT_GT(cm::stabilization_energy(bk, 1e-3, 1.0), 100 * bk);
+  const double growth = 10.0 * std::pow(0.9999 / 0.999, 2);
+  EXPECT_NEAR(cm::stabilization_energy(bk, 1e-4, 1.0) / cm::stabilization_energy(bk, 1e-3, 1.0),
+              growth, 1e-9 * growth);
 }
 
 // ---- viscosity ---------------------------------------------------------------------------
