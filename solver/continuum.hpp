@@ -49,8 +49,8 @@ inline double tait_bulk_modulus(double kappa, double j_pow_minus_n) {
 // Stabilisation of the average nodal pressure element's element-level volume modes
 // (nodal_pressure.hpp, docs/model.md "Element"), per unit reference area:
 //   W_stab = beta kappa (J_e - Jbar)^2 / (2 J_e),
-// J_e the element's J and Jbar the mean of its nodes' J. For a small discrepancy it is the
-// quadratic penalty beta kappa (J_e - Jbar)^2 / 2 (to first order in J - 1); unlike it, it grows
+// J_e the element's J and Jbar the mean of its nodes' J: the quadratic penalty
+// beta kappa (J_e - Jbar)^2 / 2 divided by J_e, so the same where J ~ 1; unlike it, it grows
 // without bound as J_e -> 0, so no finite energy crushes an element whose nodes keep their area
 // (a strong pulse did that to rim elements with the quadratic form). With rho = Jbar / J_e:
 inline double stabilization_energy(double beta_kappa, double j_element, double j_bar) {
