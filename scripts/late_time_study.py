@@ -146,6 +146,31 @@ def pictures(work, out_dir):
         print("wrote", out)
 
 
+def abar_picture(work, out_dir):
+    """Raw A-bar(t) of the default run on every mesh present: where 16.5k leaves 66k and 264k."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig, ax = plt.subplots(figsize=(8, 4))
+    drawn = False
+    for n in (4000, 16500, 66000, 264000):
+        d = os.path.join(work, "robust_%d" % n)
+        if not os.path.exists(os.path.join(d, "result.h5")):
+            continue
+        _, ts, _, s = load(d)
+        ax.plot(ts["time"] * 1e9, ts["abar"], label="%d elements" % s["elements"])
+        drawn = True
+    if not drawn:
+        return
+    ax.set_xlabel("t (ns)")
+    ax.set_ylabel(r"raw $\bar{A}$")
+    ax.set_title("default run (baseline load) under refinement")
+    ax.legend()
+    out = os.path.join(out_dir, "abar_refinement.png")
+    fig.savefig(out, dpi=90, bbox_inches="tight")
+    print("wrote", out)
+
+
 def pbar_runs(work):
     """The default run on 16.5k elements at each pulse pressure (P-bar = P / 2 GPa) present."""
     runs = [(0.5 * p, os.path.join(work, "pbar_%s" % tag)) for p, tag in
@@ -207,6 +232,7 @@ def main():
     if "--pictures" in sys.argv:
         out_dir = sys.argv[sys.argv.index("--pictures") + 1]
         pictures(work, out_dir)
+        abar_picture(work, out_dir)
         pbar_picture(work, out_dir)
 
 
