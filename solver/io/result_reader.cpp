@@ -14,6 +14,7 @@
 #include <mutex>
 #include <stdexcept>
 #include <string_view>
+#include <type_traits>
 #include <utility>
 
 #include "solver/io/durable_file.hpp"
@@ -60,19 +61,14 @@ std::string read_string_attr(hid_t obj, const char* name, const std::string& pat
   return value;
 }
 
-int64_t read_int_attr(hid_t obj, const char* name, const std::string& path) {
+// A scalar attribute read as T (int64_t or double; HDF5 converts the stored type).
+template <typename T>
+T read_scalar_attr(hid_t obj, const char* name, const std::string& path) {
+  static_assert(std::is_same_v<T, int64_t> || std::is_same_v<T, double>);
+  const hid_t memory_type = std::is_same_v<T, double> ? H5T_NATIVE_DOUBLE : H5T_NATIVE_INT64;
   Hid attr = checked(H5Aopen(obj, name, H5P_DEFAULT), std::string("open attribute ") + name, path);
-  int64_t value = 0;
-  checked(H5Aread(attr.get(), H5T_NATIVE_INT64, &value), std::string("read attribute ") + name,
-          path);
-  return value;
-}
-
-double read_double_attr(hid_t obj, const char* name, const std::string& path) {
-  Hid attr = checked(H5Aopen(obj, name, H5P_DEFAULT), std::string("open attribute ") + name, path);
-  double value = 0;
-  checked(H5Aread(attr.get(), H5T_NATIVE_DOUBLE, &value), std::string("read attribute ") + name,
-          path);
+  T value = 0;
+  checked(H5Aread(attr.get(), memory_type, &value), std::string("read attribute ") + name, path);
   return value;
 }
 
@@ -144,14 +140,14 @@ ResultReader::ResultReader(const std::string& h5_path) : impl_(std::make_unique<
     Hid fapl = file_access_plist(h5_path);
     m.file = checked(H5Fopen(h5_path.c_str(), H5F_ACC_RDONLY, fapl.get()), "open file", h5_path);
     const hid_t root = m.file.get();
-    const int64_t version = read_int_attr(root, "format_version", h5_path);
+    const int64_t version = read_scalar_attr<int64_t>(root, "format_version", h5_path);
     if (version < 1 || version > kFormatVersion) {
       throw std::runtime_error("result file " + h5_path + " has format_version " +
                                std::to_string(version) + "; this reader knows 1.." +
                                std::to_string(kFormatVersion));
     }
     ResultInfo& info = m.info;
-    info.complete = read_int_attr(root, "complete", h5_path) != 0;
+    info.complete = read_scalar_attr<int64_t>(root, "complete", h5_path) != 0;
     info.error = read_string_attr(root, "error", h5_path);
     info.spec_json = read_string_attr(root, "spec", h5_path);
     info.summary_json = read_string_attr(root, "summary", h5_path);
@@ -172,7 +168,7 @@ ResultReader::ResultReader(const std::string& h5_path) : impl_(std::make_unique<
       const std::string name = frame_group_name(static_cast<std::size_t>(k));
       Hid g =
           checked(H5Gopen2(fields.get(), name.c_str(), H5P_DEFAULT), "open group " + name, h5_path);
-      info.frame_times.push_back(read_double_attr(g.get(), "time", h5_path));
+      info.frame_times.push_back(read_scalar_attr<double>(g.get(), "time", h5_path));
     }
   } catch (...) {
     m.file.reset();
