@@ -129,15 +129,9 @@ double Diagnostics::stored_energy(const NodalView& nodes, const KernelView& kern
   double energy = 0;
   const bool nodal = !nodal_area0_.empty() && kernel.nodal_j != nullptr;
   const double w_element = nodal ? problem_.element.element_weight : 1.0;
-  if (nodal) {  // sum_a V_a W_vol(J_a) + sum_e A_e (beta kappa / 2)(J_e - Jbar_e)^2
-    const double w_nodal = 1.0 - w_element;
-    const double beta_kappa = problem_.element.stabilization * kappa;
-    energy = add_nodal_volumetric_energy(nodal_area0_.data(), kernel.nodal_j, nodal_area0_.size(),
-                                         kappa, n, w_nodal, energy);
-    const double* s = kernel.element_stress_shift;
-    for (std::size_t e = 0; e < g.size(); ++e)
-      energy += w_nodal * 0.5 * g.area0[e] * s[e] * s[e] / (beta_kappa > 0 ? beta_kappa : 1.0);
-  }
+  if (nodal)  // sum_a V_a W_vol(J_a) + sum_e A_e W_stab(J_e, Jbar_e), from the kernel's state
+    energy = nodal_pressure_energy(g, nodal_area0_, kernel.nodal_j, kernel.element_j, kappa, n,
+                                   1.0 - w_element, problem_.element.stabilization * kappa);
   const ElementScan scan =
       scan_elements(g, nodes.x, nodes.y, mat.shear_modulus_Pa, kappa, n, w_element, energy);
   if (max_aspect_ratio != nullptr) *max_aspect_ratio = scan.max_aspect_ratio;

@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "continuum.hpp"
+#include "element_diagnostics.hpp"
 
 // libmvec's vector log/exp (see element_kernels.cpp for why they are declared here).
 extern "C" {
@@ -100,6 +101,20 @@ void subtract_stabilization(const double* reference_area, const double* q_sum, s
   for (std::size_t i = begin; i < end; ++i) mean_stress[i] -= q_sum[i] / reference_area[i];
 }
 
+double nodal_pressure_energy(const ElementGeometry& g, const std::vector<double>& reference_area,
+                             const double* nodal_j, const double* j_element, double kappa, double n,
+                             double w_nodal, double beta_kappa) {
+  double energy = add_nodal_volumetric_energy(reference_area.data(), nodal_j, reference_area.size(),
+                                              kappa, n, w_nodal, 0.0);
+  if (beta_kappa > 0)
+    for (std::size_t e = 0; e < g.size(); ++e) {
+      const double jbar = (nodal_j[g.node0[e]] + nodal_j[g.node1[e]] + nodal_j[g.node2[e]]) / 3.0;
+      energy +=
+          w_nodal * g.area0[e] * continuum::stabilization_energy(beta_kappa, j_element[e], jbar);
+    }
+  return energy;
+}
+
 NodalPressureState nodal_pressure_state(const ElementGeometry& g,
                                         const std::vector<double>& reference_area, double kappa,
                                         double n, double element_weight, double beta,
@@ -112,18 +127,14 @@ NodalPressureState nodal_pressure_state(const ElementGeometry& g,
                    k.data());
   NodalPressureState out;
   const double w_nodal = 1.0 - element_weight;
-  for (std::size_t i = 0; i < nn; ++i)
-    out.stored_energy += w_nodal * reference_area[i] *
-                         continuum::tait_energy(kappa, n, nodal_j[i], std::pow(nodal_j[i], -n));
+  out.stored_energy = nodal_pressure_energy(g, reference_area, nodal_j.data(), j_element.data(),
+                                            kappa, n, w_nodal, beta * kappa);
   accumulate_stabilization(g, beta * kappa, nodal_j.data(), j_element.data(), 0, ne, s.data(),
                            q.data());
   subtract_stabilization(reference_area.data(), q.data(), 0, nn, sm.data());
   out.element_mean_stress.resize(ne);
   for (std::size_t e = 0; e < ne; ++e) {
     const double je = j_element[e];
-    const double jbar = (nodal_j[g.node0[e]] + nodal_j[g.node1[e]] + nodal_j[g.node2[e]]) / 3.0;
-    out.stored_energy +=
-        w_nodal * g.area0[e] * continuum::stabilization_energy(beta * kappa, je, jbar);
     const double nodal_mean = (sm[g.node0[e]] + sm[g.node1[e]] + sm[g.node2[e]]) / 3.0 + s[e];
     out.element_mean_stress[e] =
         w_nodal * nodal_mean +

@@ -49,6 +49,14 @@ void accumulate_stabilization(const ElementGeometry& geometry, double beta_kappa
 void subtract_stabilization(const double* reference_area, const double* q_sum, std::size_t begin,
                             std::size_t end, double* mean_stress);
 
+// The stored volumetric + stabilisation energy of the body (J/m) from the passes' state:
+// w_nodal (sum_a V_a W_vol(J_a) + sum_e A_e W_stab(J_e, Jbar_e)) -- the energy whose gradient the
+// kernel's forces are, so the history's energy balance books exactly what the dynamics see.
+double nodal_pressure_energy(const ElementGeometry& geometry,
+                             const std::vector<double>& reference_area, const double* nodal_j,
+                             const double* j_element, double kappa, double tait_n, double w_nodal,
+                             double beta_kappa);
+
 // All four passes at once, for diagnostics (not the hot path): per element, the volumetric mean
 // stress the kernel applies (nodal mean + stabilisation; element_weight blends in the element's
 // own sigma_m(J_e)), and the stored volumetric + stabilisation energy of the body (J/m).
