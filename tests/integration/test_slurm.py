@@ -166,9 +166,22 @@ class SlurmTest(DaemonTestCase):
         self.assertIn("re-attached", self.daemon.log_tail(400))
 
 
+def slurm_running() -> bool:
+    """A dev cluster already up (a developer's): the test uses it and leaves it up."""
+    return subprocess.run([os.path.join(REPO, "scripts", "slurm-dev"), "status"],
+                          capture_output=True, timeout=30).returncode == 0
+
+
 if __name__ == "__main__":
+    started_here = not slurm_running()
     why = slurm_up()
     if why:
         print(f"SKIPPED: {why}")
         sys.exit(SKIP)
-    unittest.main()
+    try:
+        result = unittest.main(exit=False).result
+    finally:
+        if started_here:  # leave the machine as found: no Slurm daemons outlive the test
+            subprocess.run([os.path.join(REPO, "scripts", "slurm-dev"), "down"],
+                           capture_output=True, timeout=60)
+    sys.exit(0 if result.wasSuccessful() else 1)
