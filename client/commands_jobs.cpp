@@ -308,6 +308,8 @@ int cmd_summary(const GlobalOptions& g, const ParsedArgs& a) {
   kv.add("steps", std::to_string(s.steps()));
   kv.add("wall time", fmt_num(s.wall_time(), 4) + " s");
   kv.add("simulated time", fmt_ns(s.end_time()));
+  kv.add("solver revision", s.solver_revision() > 0 ? std::to_string(s.solver_revision())
+                                                    : std::string("not recorded"));
   if (s.steps() > 0 && s.elements() > 0 && s.wall_time() > 0) {
     // Grind time, the figure explicit codes are compared by (LS-DYNA's "time per zone cycle"):
     // the whole run's and the element loop's alone, and the meshing share beside them, so the

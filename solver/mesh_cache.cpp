@@ -28,7 +28,8 @@ namespace fs = std::filesystem;
 
 constexpr char kMagic[8] = {'S', 'S', 'M', 'E', 'S', 'H', '\0', '\1'};
 // Bump kFormatVersion when the entry layout changes, kMesherRevision when the meshes themselves
-// would change for the same geometry (gmsh_mesher.cpp's algorithm, sort_for_locality).
+// would change for the same geometry (gmsh_mesher.cpp's algorithm, ring_mesher.cpp,
+// sort_for_locality) -- and then run_summary.hpp's kSolverRevision too: the results change.
 constexpr std::uint32_t kFormatVersion = 1;
 constexpr int kMesherRevision = 1;
 constexpr const char* kSuffix = ".mesh";

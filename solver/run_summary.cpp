@@ -146,7 +146,8 @@ std::string summary_to_json(const RunSummary& s) {
     }
     o << ",\"error\":\"" << e << "\"";
   }
-  o << ",\"elements\":" << s.elements << ",\"nodes\":" << s.nodes << ",\"steps\":" << s.steps
+  o << ",\"solver_revision\":" << s.solver_revision << ",\"elements\":" << s.elements
+    << ",\"nodes\":" << s.nodes << ",\"steps\":" << s.steps
     << ",\"wall_time_s\":" << number(s.wall_time_s) << ",\"end_time_s\":" << number(s.end_time_s)
     << ",\"groups\":{\"pbar\":" << number(s.groups.pbar)
     << ",\"tbar_pulse\":" << number(s.groups.tbar_pulse) << ",\"mubar\":" << number(s.groups.mubar)

@@ -20,7 +20,15 @@ NondimensionalGroups nondimensional_groups(const Material& material,
                                            const ArtificialViscosity& viscosity,
                                            const PressurePulse& load, double r0_m);
 
+// The revision of the numerics. Bump it whenever one and the same spec gives different results:
+// the element, the viscosities, the integrator, the mesher (with mesh_cache.cpp's
+// kMesherRevision) or a default that normalize_spec does not write into the spec. Every summary
+// records it; the service reuses a stored result only from the same revision (docs/api.md).
+// 1 is the first recorded (2026-12-02); results written before carry none and read as 0.
+inline constexpr int kSolverRevision = 1;
+
 struct RunSummary {
+  int solver_revision = kSolverRevision;  // of the solver that produced it; 0 = not recorded
   std::size_t elements = 0, nodes = 0;
   int64_t steps = 0;
   double wall_time_s = 0;

@@ -92,6 +92,9 @@ RunSummary parse_summary_json(const std::string& json) {
   r.elements = json_count<std::size_t>(s, "elements");
   r.nodes = json_count<std::size_t>(s, "nodes");
   r.steps = json_count<int64_t>(s, "steps");
+  // Absent in results written before revisions were recorded: 0, never equal to a live one.
+  r.solver_revision =
+      f.find("solver_revision") != f.end() ? json_count<int>(s, "solver_revision") : 0;
   r.wall_time_s = json_number(s, "wall_time_s");
   r.end_time_s = json_number(s, "end_time_s");
   if (const auto g = f.find("groups"); g != f.end()) {

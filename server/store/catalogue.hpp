@@ -231,10 +231,12 @@ class Catalogue {
   std::optional<StoredSummary> summary(const std::string& id) const;
   // Counts per state (for the start-up log).
   std::map<JobState, int64_t> counts() const;
-  // The first SUCCEEDED job with this spec hash that ran itself and has a result file, other
-  // than `except_id`: what an identical run may reuse.
+  // The first SUCCEEDED job with this spec hash that ran itself, has a result file and a summary
+  // from solver revision `solver_revision` (the running one), other than `except_id`: what an
+  // identical run may reuse. A result of other numerics is never passed off as this solver's.
   std::optional<JobRecord> find_reusable(const std::string& spec_hash,
-                                         const std::string& except_id = "") const;
+                                         const std::string& except_id = "",
+                                         int solver_revision = kSolverRevision) const;
   // Jobs matching every condition, in the requested order, one page.
   std::vector<QueryRow> query(const JobQuery& query) const;
 

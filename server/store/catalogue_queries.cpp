@@ -69,7 +69,8 @@ const std::vector<std::string>& query_column_names() {
 }
 
 std::optional<JobRecord> Catalogue::find_reusable(const std::string& spec_hash,
-                                                  const std::string& except_id) const {
+                                                  const std::string& except_id,
+                                                  int solver_revision) const {
   std::lock_guard lock(reader_mutex_);
   std::optional<JobRecord> out;
   {
@@ -78,8 +79,10 @@ std::optional<JobRecord> Catalogue::find_reusable(const std::string& spec_hash,
     auto s = reader_->prepare("SELECT " + job_columns() +
                               " FROM jobs WHERE spec_hash = ? AND state = ? AND reused_from = '' "
                               "AND result_path != '' AND id != ? AND EXISTS (SELECT 1 FROM "
-                              "job_summaries WHERE job_id = jobs.id) ORDER BY seq LIMIT 1");
+                              "job_summaries WHERE job_id = jobs.id AND solver_revision = ?) "
+                              "ORDER BY seq LIMIT 1");
     s.bind(1, spec_hash).bind(2, static_cast<int>(JobState::kSucceeded)).bind(3, except_id);
+    s.bind(4, static_cast<int64_t>(solver_revision));
     if (s.step()) out = read_job(s);
   }
   if (out) load_labels(*reader_, *out);

@@ -171,6 +171,11 @@ ALTER TABLE job_summaries ADD COLUMN abar_filtered_end REAL NOT NULL DEFAULT 0;
 ALTER TABLE job_summaries ADD COLUMN max_aspect_ratio REAL NOT NULL DEFAULT 0;
 ALTER TABLE job_summaries ADD COLUMN aspect_ratio_above_10 REAL NOT NULL DEFAULT -1;
 )sql",
+    // 5 -> 6: the revision of the solver that produced the summary (RunSummary::solver_revision;
+    // results are reused only from the running one). Older rows: 0, so none is reused.
+    R"sql(
+ALTER TABLE job_summaries ADD COLUMN solver_revision INTEGER NOT NULL DEFAULT 0;
+)sql",
 };
 
 }  // namespace

@@ -77,7 +77,7 @@ using SS = StoredSummary;
 
 // The run's figures: job_summaries' columns for RunSummary (every one of its fields but none
 // of the decimated series).
-const std::array<Column<RS>, 32> kFigures = {{
+const std::array<Column<RS>, 33> kFigures = {{
     count<RS, &RS::elements>("elements"),
     count<RS, &RS::nodes>("nodes"),
     count<RS, &RS::steps>("steps"),
@@ -110,6 +110,7 @@ const std::array<Column<RS>, 32> kFigures = {{
     figure<RS, &RS::abar_filtered_end>("abar_filtered_end"),
     figure<RS, &RS::max_aspect_ratio>("max_aspect_ratio"),
     figure<RS, &RS::aspect_ratio_above_10_s>("aspect_ratio_above_10"),
+    count<RS, &RS::solver_revision>("solver_revision"),
 }};
 
 // The decimated series a StoredSummary adds: heavy, so read only where they are needed.

@@ -150,6 +150,7 @@ void fill_summary(const std::string& id, const RunSummary& s, v1::JobSummary* re
   resp->set_abar_filtered_end(s.abar_filtered_end);
   resp->set_max_aspect_ratio(s.max_aspect_ratio);
   resp->set_aspect_ratio_above_10(s.aspect_ratio_above_10_s);
+  resp->set_solver_revision(s.solver_revision);
 }
 
 Status check_request_id_and_labels(const std::string& request_id,

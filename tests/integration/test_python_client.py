@@ -40,6 +40,8 @@ class PythonClientTest(DaemonTestCase):
         self.assertLess(summary["kernel_grind_time"], summary["grind_time"])
         self.assertIn(summary["mesh_cache"], ("hit", "miss"))
         self.assertTrue(0 <= summary["meshing_share"] < 1)
+        # Provenance: the solver revision that computed it (0 only for results from before).
+        self.assertGreaterEqual(summary["solver_revision"], 1)
 
         series = c.series(job.id)
         self.assertIn("abar", series)

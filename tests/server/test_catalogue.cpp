@@ -45,12 +45,12 @@ class CatalogueTest : public ::testing::Test {
 TEST_F(CatalogueTest, MigrationsAreIdempotentAndDataSurvivesReopen) {
   {
     Catalogue c(path_);
-    EXPECT_EQ(c.schema_version(), 5);
+    EXPECT_EQ(c.schema_version(), 6);
     c.insert(job("a", 3, 0, {{"study", "s1"}}));
   }
   for (int i = 0; i < 2; ++i) {
     Catalogue c(path_);
-    EXPECT_EQ(c.schema_version(), 5);
+    EXPECT_EQ(c.schema_version(), 6);
     auto a = c.get("a");
     ASSERT_TRUE(a);
     EXPECT_EQ(a->state, JobState::kQueued);
@@ -91,6 +91,7 @@ StoredSummary distinct_summary() {
   r.kernel_time_s = 1.31;
   r.meshing_time_s = 1.32;
   r.mesh_cache = "hit";
+  r.solver_revision = 133;
   s.mode_count = 2;
   s.mode_times = {1.34, 1.35};
   s.mode_amplitudes = {1.36, 1.37, 1.38, 1.39};
@@ -142,6 +143,7 @@ void expect_same_figures(const RunSummary& a, const RunSummary& b) {
   expect_same(a.kernel_time_s, b.kernel_time_s, "kernel_time_s");
   expect_same(a.meshing_time_s, b.meshing_time_s, "meshing_time_s");
   EXPECT_EQ(a.mesh_cache, b.mesh_cache);
+  EXPECT_EQ(a.solver_revision, b.solver_revision);
 }
 
 // The summary columns are one table (store/summary_rows.cpp): every field goes in with
@@ -495,6 +497,8 @@ TEST_F(CatalogueTest, GridsCountCancelAndReuse) {
   EXPECT_EQ(c.find_reusable("same-spec")->id, "source");
   EXPECT_FALSE(c.find_reusable("same-spec", "source"));
   EXPECT_FALSE(c.find_reusable("other"));
+  EXPECT_FALSE(c.find_reusable("same-spec", "", kSolverRevision + 1))
+      << "a result of other numerics is not this solver's";
 
   NewGrid g;
   g.id = "g1";

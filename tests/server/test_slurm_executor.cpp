@@ -63,4 +63,7 @@ TEST(SlurmStates, SummaryJsonRoundTrip) {
   EXPECT_NEAR(r.max_abar, s.max_abar, 1e-12);
   EXPECT_EQ(r.dominant_mode_end, 6);
   EXPECT_EQ(r.rim_reflections_s.size(), 2u);
+  EXPECT_EQ(r.solver_revision, kSolverRevision);
+  // A summary written before revisions were recorded: 0, which no running solver has.
+  EXPECT_EQ(parse_summary_json(R"({"elements": 412, "steps": 987})").solver_revision, 0);
 }
