@@ -196,25 +196,32 @@ def pbar_table(work):
 
 
 def beta_table(work):
-    """The element stabilisation beta against the figures it trades (beta<b>_* runs; the default
-    beta = 0.01 is robust_16500 / robust_66000 / pbar_2.5e9 / pbar_3e9)."""
+    """The element stabilisation beta against the figures it trades: the beta<b>_* runs the driver
+    made, beside the default's own (robust_16500 / robust_66000 / pbar_2.5e9 / pbar_3e9, whose
+    beta is read from the spec they ran)."""
     print("| β | steps (16.5k) | min Δt after 300 ns (ps) | largest aspect ratio, any time /"
           " of an element setting Δt after 300 ns | raw Ā(800 ns) 16.5k | 66k | 66k from 16.5k |"
           " largest aspect ratio, 66k | P̄ = 1.25: steps / largest aspect ratio |"
           " P̄ = 1.5: steps / largest aspect ratio |")
     print("|---|---|---|---|---|---|---|---|---|---|")
-    default = ("robust_16500", "robust_66000", "pbar_2.5e9", "pbar_3e9")
-    for b in ("0.0075", "0.01", "0.0125", "0.015", "0.02"):
-        names = default if b == "0.01" else tuple(
-            "beta%s_%s" % (b, n) for n in ("16500", "66000", "pbar_2.5e9", "pbar_3e9"))
-        dirs = [os.path.join(work, n) for n in names]
+    runs = ("16500", "66000", "pbar_2.5e9", "pbar_3e9")
+    default_dirs = [os.path.join(work, n) for n in ("robust_16500", "robust_66000") + runs[2:]]
+    rows = {}
+    if os.path.exists(os.path.join(default_dirs[0], "spec.json")):
+        spec = json.load(open(os.path.join(default_dirs[0], "spec.json")))
+        rows[float(spec["element"]["stabilization"])] = (default_dirs, True)
+    for name in os.listdir(work):
+        if name.startswith("beta") and name.endswith("_16500"):
+            b = name[len("beta"):-len("_16500")]
+            rows[float(b)] = ([os.path.join(work, "beta%s_%s" % (b, r)) for r in runs], False)
+    for b, (dirs, is_default) in sorted(rows.items()):
         if not all(os.path.exists(os.path.join(d, "result.h5")) for d in dirs):
             continue
         (_, ts, _, s), (_, _, _, fine), (_, _, _, p125), (_, _, _, p15) = map(load, dirs)
         late = ts["time"] >= 300e-9
-        print("| %s%s | %d | %.1f | %.1f / %.1f | %.4f | %.4f | %+.1f %% | %.1f | %d / %.1f |"
+        print("| %g%s | %d | %.1f | %.1f / %.1f | %.4f | %.4f | %+.1f %% | %.1f | %d / %.1f |"
               " %d / %.1f |" % (
-                  b, " (default)" if b == "0.01" else "", s["steps"],
+                  b, " (default)" if is_default else "", s["steps"],
                   ts["dt"][late].min() * 1e12, s["max_aspect_ratio"],
                   ts["dt_element_aspect_ratio"][late].max(), s["abar_end"], fine["abar_end"],
                   100 * (fine["abar_end"] / s["abar_end"] - 1), fine["max_aspect_ratio"],

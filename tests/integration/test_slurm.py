@@ -20,13 +20,13 @@ from softshock_harness import Daemon, DaemonTestCase, long_spec, small_spec, sta
 REPO = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", ".."))
 SOLVE = os.environ.get("SOFTSHOCK_SOLVE", "softshock-solve")
 SKIP = 77
+SLURM_DEV = os.path.join(REPO, "scripts", "slurm-dev")
 
 
 def slurm_up() -> str:
     """Starts scripts/slurm-dev; returns '' when ready, else why not."""
     try:
-        p = subprocess.run([os.path.join(REPO, "scripts", "slurm-dev"), "up"],
-                           capture_output=True, text=True, timeout=90)
+        p = subprocess.run([SLURM_DEV, "up"], capture_output=True, text=True, timeout=90)
     except (OSError, subprocess.TimeoutExpired) as e:
         return f"scripts/slurm-dev up: {e}"
     if p.returncode != 0:
@@ -168,8 +168,7 @@ class SlurmTest(DaemonTestCase):
 
 def slurm_running() -> bool:
     """A dev cluster already up (a developer's): the test uses it and leaves it up."""
-    return subprocess.run([os.path.join(REPO, "scripts", "slurm-dev"), "status"],
-                          capture_output=True, timeout=30).returncode == 0
+    return subprocess.run([SLURM_DEV, "status"], capture_output=True, timeout=30).returncode == 0
 
 
 if __name__ == "__main__":
@@ -182,6 +181,5 @@ if __name__ == "__main__":
         result = unittest.main(exit=False).result
     finally:
         if started_here:  # leave the machine as found: no Slurm daemons outlive the test
-            subprocess.run([os.path.join(REPO, "scripts", "slurm-dev"), "down"],
-                           capture_output=True, timeout=60)
+            subprocess.run([SLURM_DEV, "down"], capture_output=True, timeout=60)
     sys.exit(0 if result.wasSuccessful() else 1)
