@@ -12,8 +12,8 @@ namespace {
 constexpr double kFixedBytes = 67e6;
 constexpr double kBytesPerElement = 850;
 // History columns besides the modes (time, energies, A-bar, centre/rim figures, dt, the
-// Delta-t-setting element: History::columns()).
-constexpr double kHistoryColumns = 18;
+// Delta-t-setting element, the interval's smallest dt: History::columns()).
+constexpr double kHistoryColumns = 20;
 // A frame, stored raw (docs/results-format.md): 6 element fields (J, aspect ratio, four
 // stresses) and 2 node vectors of 3 columns (nodes ~ elements / 2), doubles; plus the group's
 // and its 8 datasets' HDF5 object headers.

@@ -7,6 +7,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <stdexcept>
 #include <utility>
 
@@ -35,7 +36,9 @@ std::vector<std::pair<std::string, const std::vector<double>*>> History::columns
           {"dt_element", &dt_element},
           {"dt_element_aspect_ratio", &dt_element_aspect_ratio},
           {"dt_element_j", &dt_element_j},
-          {"dt_element_on_rim", &dt_element_on_rim}};
+          {"dt_element_on_rim", &dt_element_on_rim},
+          {"min_dt", &min_dt},
+          {"min_dt_element", &min_dt_element}};
 }
 
 std::string series_units(std::string_view name) {
@@ -58,6 +61,8 @@ std::string series_units(std::string_view name) {
       {"dt_element_aspect_ratio", "1"},
       {"dt_element_j", "1"},
       {"dt_element_on_rim", "1"},
+      {"min_dt", "s"},
+      {"min_dt_element", "1"},
   };
   for (const auto& [n, u] : kUnits)
     if (n == name) return std::string(u);
@@ -386,8 +391,17 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
   }
   double dt_stable = options.cfl * std::sqrt(totals.min_step_sq);
   result.min_dt_s = result.max_dt_s = dt_stable;
-  diagnostics.sample(view, elements, kernel_view, t, dt_stable, totals.min_step_element, dissipated,
-                     external_work, result.history);
+  // The smallest stable step since the last sample, and its element.
+  double interval_min_dt = dt_stable;
+  int64_t interval_min_element = totals.min_step_element;
+  auto sample_history = [&] {
+    diagnostics.sample(view, elements, kernel_view, t, dt_stable, totals.min_step_element,
+                       dissipated, external_work, result.history);
+    result.history.min_dt.push_back(interval_min_dt);
+    result.history.min_dt_element.push_back(static_cast<double>(interval_min_element));
+    interval_min_dt = std::numeric_limits<double>::infinity(), interval_min_element = -1;
+  };
+  sample_history();
   if (options.output_interval_s > 0 && control.on_frame) {
     control.on_frame(diagnostics.frame(view, elements, kernel_view, t));
     ++result.frames_written;
@@ -438,6 +452,8 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
     dt_stable = options.cfl * std::sqrt(totals.min_step_sq);
     result.min_dt_s = std::min(result.min_dt_s, dt_stable);
     result.max_dt_s = std::max(result.max_dt_s, dt_stable);
+    if (dt_stable < interval_min_dt)
+      interval_min_dt = dt_stable, interval_min_element = totals.min_step_element;
     if (!(dt_stable > options.end_time_s * 1e-12)) {
       result.status = RunStatus::kFailed;
       result.failure = FailureKind::kTimeStepCollapse;
@@ -451,8 +467,7 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
 
     if (t >= schedule.next_history_time() - tiny) {
       while (schedule.next_history_time() <= t + tiny) ++schedule.next_history;
-      diagnostics.sample(view, elements, kernel_view, t, dt_stable, totals.min_step_element,
-                         dissipated, external_work, result.history);
+      sample_history();
       if (!std::isfinite(result.history.kinetic_energy.back())) {
         result.status = RunStatus::kFailed;
         result.failure = FailureKind::kNonFinite;
@@ -476,8 +491,7 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
 
   // The final state is always in the history and (when frames are on) in the last frame.
   if (result.history.time.back() < t - tiny && result.status != RunStatus::kFailed)
-    diagnostics.sample(view, elements, kernel_view, t, dt_stable, totals.min_step_element,
-                       dissipated, external_work, result.history);
+    sample_history();
   if (options.output_interval_s > 0 && control.on_frame && last_frame_time < t - tiny &&
       steps > 0 && result.status != RunStatus::kFailed) {
     control.on_frame(diagnostics.frame(view, elements, kernel_view, t));

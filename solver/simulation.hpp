@@ -36,6 +36,10 @@ struct History {
   std::vector<double> dt_element_aspect_ratio;
   std::vector<double> dt_element_j;
   std::vector<double> dt_element_on_rim;
+  // The smallest stable step of every step since the previous sample (dt is the one in force at
+  // the sample: a dip between samples shows here) and the element that set it.
+  std::vector<double> min_dt;
+  std::vector<double> min_dt_element;
   // Fourier amplitudes of the rim radial displacement / R0: modes[k][m], m = 0..M.
   std::vector<std::vector<double>> modes;
 

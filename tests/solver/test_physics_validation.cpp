@@ -303,6 +303,27 @@ TEST(PhysicsValidation, InvertingRunFailsWithTimeElementAndCause) {
   EXPECT_NE(r.error.find("ns"), std::string::npos) << r.error;
 }
 
+// The history's min_dt sees every step, not only the sampled ones: its smallest value is the
+// run's (RunResult::min_dt_s, the minimum over all steps), each is at most the dt in force at
+// its sample, and with samples 5 ns apart a shock run dips between them.
+TEST(PhysicsValidation, HistoryRecordsTheSmallestStepBetweenSamples) {
+  const RunResult r = run_spec(spec_from(
+      R"({"geometry":{"target_elements":1000},"run":{"end_time":1e-7,"history_interval":5e-9}})"));
+  ASSERT_EQ(r.status, RunStatus::kCompleted) << r.error;
+  const History& h = r.history;
+  ASSERT_EQ(h.min_dt.size(), h.size());
+  ASSERT_EQ(h.min_dt_element.size(), h.size());
+  EXPECT_EQ(*std::min_element(h.min_dt.begin(), h.min_dt.end()), r.min_dt_s);
+  int dips = 0;
+  for (std::size_t k = 0; k < h.size(); ++k) {
+    EXPECT_LE(h.min_dt[k], h.dt[k]) << "sample " << k;
+    EXPECT_GE(h.min_dt_element[k], 0.0) << "sample " << k;
+    dips += h.min_dt[k] < h.dt[k];
+  }
+  EXPECT_GT(dips, 0);
+  EXPECT_GT(*std::min_element(h.dt.begin(), h.dt.end()), r.min_dt_s);  // the samples miss it
+}
+
 TEST(PhysicsValidation, CancellationStopsTheRun) {
   std::atomic<bool> cancel{false};
   RunControl control;
