@@ -31,7 +31,7 @@ constexpr char kMagic[8] = {'S', 'S', 'M', 'E', 'S', 'H', '\0', '\1'};
 // would change for the same geometry (gmsh_mesher.cpp's algorithm, ring_mesher.cpp,
 // sort_for_locality) -- and then run_summary.hpp's kSolverRevision too: the results change.
 constexpr std::uint32_t kFormatVersion = 1;
-constexpr int kMesherRevision = 1;
+constexpr int kMesherRevision = 2;  // 2: ring_mesher.cpp's hexagonal centre
 constexpr const char* kSuffix = ".mesh";
 constexpr const char* kTmpMarker = ".tmp.";
 constexpr int kLockStripes = 64;  // lock files, never removed: a bounded set

@@ -205,56 +205,75 @@ TEST(LateTimeVerification, RimSpectrumDoesNotFollowTheMeshOrientation) {
 }
 
 // The default formulation to 800 ns on the default mesh: at most 6,000 steps, largest aspect
-// ratio <= 15 at 800 ns and at any time before, raw A-bar < 0.5 (the issue's figures). After
-// 300 ns the time step never falls below its floor in the first cycle, which is physical -- the
-// converging shock's focus at the centre (~28 ns, J ~ 0.7, where the Tait bulk modulus is
-// ~10 kappa). The issue's "no dt below 100 ps after 300 ns" is not met: the shock refocuses at
-// the centre at ~388 and ~567 ns and sets 58 ps there (docs/verification.md). What is asserted
-// instead is the issue's diagnosis turned round: every step below 100 ps after 300 ns is set by
-// a compact element (aspect ratio < 5; the undeformed mesh's worst is 3.0, the issue's sliver
-// > 10) away from the rim -- the compression, not the mesh's shape -- and the stretched elements of
-// the erupting lobes (aspect ratio up to ~11 from ~590 ns) set steps of 110 ps and more. Then the
-// 66k mesh: its raw A-bar within the issue's 25 % of the 16.5k one at 400-800 ns (measured +2 % to
-// +22 %, +22 % at 800 ns; with beta = 0.02 it was +32 % at 800 ns, docs/verification.md, "Stronger
-// pulses").
+// ratio <= 15 at 800 ns and at any time before, raw A-bar < 0.5 (the issue's figures). Every step
+// counts (History::min_dt, the smallest step between samples; the samples' dt alone missed the
+// deepest dips: 58.4 against 50.7 ps on the mesh before the hexagonal centre). After 300 ns the
+// step never falls below its floor in the first cycle, which is physical: the converging shock's
+// focus at the centre (~28 ns, J ~ 0.6, where the Tait bulk modulus is ~30 kappa). The issue's
+// "no dt below 100 ps after 300 ns" is not met: the shock refocuses at ~388 ns and compresses
+// the equilateral elements of ring 1 to J ~ 0.62, 84 ps (docs/verification.md). What is
+// asserted instead is the issue's diagnosis turned round: every step below 100 ps after 300 ns is
+// set within 10 um of the centre -- the focus, not the mesh's shape --, elements within 10 um of
+// the rim (where the issue saw the slivers that set it) set no step below 100 ps, and the stretched
+// elements of the erupting lobes (aspect ratio up to ~11 from ~590 ns; sampled) set steps of 110 ps
+// and more. Then the 66k mesh: its raw A-bar within the issue's 25 % of the 16.5k one at 400-800 ns
+// (measured +2 % to +22 %, +22 % at 800 ns; with beta = 0.02 it was +32 % at 800 ns,
+// docs/verification.md, "Stronger pulses").
 TEST(LateTimeVerification, DefaultRunIsRobustAndItsAbarConvergesTo800ns) {
   Problem problem;
   const RunResult r = run_json(R"({"run":{"output_interval":0}})", &problem);
   ASSERT_EQ(r.status, RunStatus::kCompleted) << r.error;
   const History& h = r.history;
-  double min_dt_late = 1, min_dt_first_cycle = 1, worst_dt_element_aspect = 0;
-  double min_dt_stretched = 1, worst_aspect_below_floor = 0;
-  int below_floor = 0, below_floor_on_rim = 0;
+  const Mesh& mesh = problem.mesh;
+  auto centre_distance = [&](int64_t e) {
+    const auto& t = mesh.triangles[static_cast<std::size_t>(e)];
+    return std::hypot(mesh.x[t[0]] + mesh.x[t[1]] + mesh.x[t[2]],
+                      mesh.y[t[0]] + mesh.y[t[1]] + mesh.y[t[2]]) /
+           3.0;
+  };
+  double radius = 0;
+  for (std::size_t i = 0; i < mesh.node_count(); ++i)
+    radius = std::max(radius, std::hypot(mesh.x[i], mesh.y[i]));
+  double min_dt_late = 1, min_dt_first_cycle = 1, min_dt_late_sampled = 1;
+  double min_dt_rim = 1, min_dt_stretched = 1, farthest_below_floor = 0;
+  double worst_dt_element_aspect = 0;
+  int below_floor = 0;
   for (std::size_t k = 1; k < h.size(); ++k) {
-    if (h.time[k] < 254.6e-9) min_dt_first_cycle = std::min(min_dt_first_cycle, h.dt[k]);
-    if (h.time[k] < 300e-9) continue;
-    min_dt_late = std::min(min_dt_late, h.dt[k]);
+    const auto element = static_cast<int64_t>(h.min_dt_element[k]);
+    ASSERT_GE(element, 0);
+    // min_dt[k] covers the steps after sample k - 1.
+    if (h.time[k - 1] < 254.6e-9) min_dt_first_cycle = std::min(min_dt_first_cycle, h.min_dt[k]);
+    if (h.time[k - 1] < 300e-9) continue;
+    min_dt_late = std::min(min_dt_late, h.min_dt[k]);
+    min_dt_late_sampled = std::min(min_dt_late_sampled, h.dt[k]);
+    if (centre_distance(element) > radius - 10e-6) min_dt_rim = std::min(min_dt_rim, h.min_dt[k]);
     worst_dt_element_aspect = std::max(worst_dt_element_aspect, h.dt_element_aspect_ratio[k]);
     if (h.dt_element_aspect_ratio[k] >= 5.0) min_dt_stretched = std::min(min_dt_stretched, h.dt[k]);
-    if (h.dt[k] < 100e-12) {
+    if (h.min_dt[k] < 100e-12) {
       ++below_floor;
-      below_floor_on_rim += h.dt_element_on_rim[k] > 0.5;
-      worst_aspect_below_floor = std::max(worst_aspect_below_floor, h.dt_element_aspect_ratio[k]);
+      farthest_below_floor = std::max(farthest_below_floor, centre_distance(element));
     }
   }
   const RunSummary s = summarize(problem, r);
   std::printf(
-      "default 16.5k: %lld steps, min dt first cycle %.1f ps, after 300 ns %.1f ps; %d samples "
-      "below 100 ps (largest aspect ratio of the element setting them %.2f, %d on the rim); "
-      "largest aspect ratio of a step-setting element %.2f, smallest step such an element with "
-      "aspect ratio >= 5 set %.1f ps; max aspect ratio %.2f (%.2f at 800 ns), A-bar(800 ns) %.4f "
-      "(filtered %.4f), mode %d\n",
-      static_cast<long long>(r.steps), min_dt_first_cycle * 1e12, min_dt_late * 1e12, below_floor,
-      worst_aspect_below_floor, below_floor_on_rim, worst_dt_element_aspect,
-      min_dt_stretched * 1e12, s.max_aspect_ratio, h.max_aspect_ratio.back(), s.abar_end,
-      s.abar_filtered_end, s.dominant_mode_end);
+      "default 16.5k: %lld steps, min dt first cycle %.1f ps, after 300 ns %.1f ps (samples "
+      "alone: %.1f ps); %d sample intervals with a step below 100 ps, set at most %.2f um from "
+      "the centre; smallest step an element within 10 um of the rim set %.1f ps; largest aspect "
+      "ratio of a "
+      "step-setting element %.2f (sampled), smallest step such an element with aspect ratio >= 5 "
+      "set %.1f ps; max aspect ratio %.2f (%.2f at 800 ns), A-bar(800 ns) %.4f (filtered %.4f), "
+      "mode %d\n",
+      static_cast<long long>(r.steps), min_dt_first_cycle * 1e12, min_dt_late * 1e12,
+      min_dt_late_sampled * 1e12, below_floor, farthest_below_floor * 1e6, min_dt_rim * 1e12,
+      worst_dt_element_aspect, min_dt_stretched * 1e12, s.max_aspect_ratio,
+      h.max_aspect_ratio.back(), s.abar_end, s.abar_filtered_end, s.dominant_mode_end);
   EXPECT_LE(r.steps, 6000);
   EXPECT_LE(h.max_aspect_ratio.back(), 15.0);
   EXPECT_LE(s.max_aspect_ratio, 15.0);
   EXPECT_LT(s.abar_end, 0.5);
   EXPECT_GE(min_dt_late, min_dt_first_cycle);
-  EXPECT_LT(worst_aspect_below_floor, 5.0);
-  EXPECT_EQ(below_floor_on_rim, 0);
+  EXPECT_LT(farthest_below_floor, 10e-6);
+  EXPECT_GE(min_dt_rim, 100e-12);
   EXPECT_GE(min_dt_stretched, 100e-12);
 
   const RunResult fine = run_json(R"({"geometry":{"target_elements":66000},
