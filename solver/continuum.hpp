@@ -118,18 +118,20 @@ inline double smallest_altitude_sq(double e1x, double e1y, double e2x, double e2
 
 // Viscous first Piola-Kirchhoff stress P_v = J sigma_v F^-T = sigma_v cof(F), with the Cauchy
 // viscous stress sigma_v = 2 nu d_dev + zeta tr(d) I, the lagged velocity gradient
-// l = (dF / dt) F_prev^-1 (dF = F - F_prev, the step's increment), d = sym(l) and the 3x3
-// deviator (d_zz = 0, so d_dev = d - tr(d)/3 I): nu a shear, zeta a bulk viscosity (Pa s).
-// In-plane block only: the zz row gives no nodal force in plane strain
-// (sigma_v,zz = zeta tr d - 2 nu tr d / 3). Takes inv = 1 / (J_prev dt).
-inline Mat2 viscous_piola_increment(const Mat2& df, const Mat2& f_prev, const Mat2& cof, double nu,
-                                    double zeta, double inv) {
+// l = ((F - F_prev) / dt) F_prev^-1, d = sym(l) and the 3x3 deviator (d_zz = 0, so
+// d_dev = d - tr(d)/3 I): nu a shear, zeta a bulk viscosity (Pa s). In-plane block only: the zz
+// row gives no nodal force in plane strain (sigma_v,zz = zeta tr d - 2 nu tr d / 3).
+// Takes inv = 1 / (J_prev dt).
+inline Mat2 viscous_piola_inv(const Mat2& f, const Mat2& f_prev, const Mat2& cof, double nu,
+                              double zeta, double inv) {
   // F_prev^-1 = cof(F_prev)^T / J_prev
   const double pi00 = f_prev[3], pi01 = -f_prev[1], pi10 = -f_prev[2], pi11 = f_prev[0];
-  const double l00 = (df[0] * pi00 + df[1] * pi10) * inv;
-  const double l01 = (df[0] * pi01 + df[1] * pi11) * inv;
-  const double l10 = (df[2] * pi00 + df[3] * pi10) * inv;
-  const double l11 = (df[2] * pi01 + df[3] * pi11) * inv;
+  const double df0 = f[0] - f_prev[0], df1 = f[1] - f_prev[1], df2 = f[2] - f_prev[2],
+               df3 = f[3] - f_prev[3];
+  const double l00 = (df0 * pi00 + df1 * pi10) * inv;
+  const double l01 = (df0 * pi01 + df1 * pi11) * inv;
+  const double l10 = (df2 * pi00 + df3 * pi10) * inv;
+  const double l11 = (df2 * pi01 + df3 * pi11) * inv;
   const double trace = l00 + l11;
   const double third_trace = trace * kThird;
   const double d00 = 2.0 * nu * (l00 - third_trace) + zeta * trace;
@@ -140,14 +142,7 @@ inline Mat2 viscous_piola_increment(const Mat2& df, const Mat2& f_prev, const Ma
 }
 inline Mat2 viscous_piola(const Mat2& f, const Mat2& f_prev, const Mat2& cof, double nu,
                           double zeta, double dt) {
-  const Mat2 df{f[0] - f_prev[0], f[1] - f_prev[1], f[2] - f_prev[2], f[3] - f_prev[3]};
-  return viscous_piola_increment(df, f_prev, cof, nu, zeta, 1.0 / (det(f_prev) * dt));
-}
-
-// J - J_prev = det(F) - det(F - dF) = cof(F) : dF - det(dF) (exact for 2x2), without the
-// cancellation of subtracting two determinants near 1.
-inline double det_increment(const Mat2& cof, const Mat2& df) {
-  return cof[0] * df[0] + cof[1] * df[1] + cof[2] * df[2] + cof[3] * df[3] - det(df);
+  return viscous_piola_inv(f, f_prev, cof, nu, zeta, 1.0 / (det(f_prev) * dt));
 }
 
 // Out-of-plane Cauchy viscous stress sigma_v,zz = (zeta - 2 nu / 3) tr(d), from the in-plane

@@ -17,13 +17,15 @@ __attribute__((simd("notinbranch"))) double cbrt(double) noexcept;
 namespace softshock {
 
 void ElementState::resize(std::size_t elements) {
+  for (auto* v : {&f_xx, &f_xy, &f_yx, &f_yy}) v->assign(elements, 0.0);
   for (auto* v : {&pv_xx, &pv_xy, &pv_yx, &pv_yy, &viscosity, &bulk_viscosity})
     v->assign(elements, 0.0f);
   reset_to_reference();
 }
 
 void ElementState::reset_to_reference() {
-  for (std::size_t e = 0; e < pv_xx.size(); ++e) {
+  for (std::size_t e = 0; e < f_xx.size(); ++e) {
+    f_xx[e] = 1.0, f_xy[e] = 0.0, f_yx[e] = 0.0, f_yy[e] = 1.0;
     pv_xx[e] = pv_xy[e] = pv_yx[e] = pv_yy[e] = 0.0f;
     viscosity[e] = bulk_viscosity[e] = 0.0f;
   }
@@ -38,18 +40,19 @@ enum class Volumetric { kElement, kNodal, kBlend };
 // The element loop, once per volumetric variant; inlined into the target_clones entry point
 // below so each ISA gets its own vectorised copy.
 template <Volumetric kVolumetric>
-inline __attribute__((always_inline)) void element_loop(
-    const ElementGeometry& g, const double* x, const double* y, const double* vx, const double* vy,
-    const KernelParams& p, std::size_t begin, std::size_t end, ElementState& s,
-    KernelTotals& totals, double* node_fx, double* node_fy, bool& all_valid) {
+inline __attribute__((always_inline)) void element_loop(const ElementGeometry& g, const double* x,
+                                                        const double* y, const KernelParams& p,
+                                                        std::size_t begin, std::size_t end,
+                                                        ElementState& s, KernelTotals& totals,
+                                                        double* node_fx, double* node_fy,
+                                                        bool& all_valid) {
   namespace cm = continuum;
   constexpr bool kNodal = kVolumetric != Volumetric::kElement;
   const double n = p.tait_n;
   const bool lagged = p.dt > 0;
   const double artificial_on = p.viscosity && lagged ? 1.0 : 0.0;
   const double eta = lagged ? p.eta : 0.0;
-  const double dt = lagged ? p.dt : 1.0;            // keeps the unused viscous branch finite
-  const double dt_increment = lagged ? p.dt : 0.0;  // no step taken: dF = 0
+  const double dt = lagged ? p.dt : 1.0;  // keeps the unused viscous branch finite
   const double kappa = p.kappa, mu = p.mu, rho0 = p.rho0, c1 = p.c1, c2 = p.c2;
   const double ramp_inv = p.ramp_inv;
   const bool smallest_altitude = p.altitude_length > 0.5;
@@ -68,18 +71,16 @@ inline __attribute__((always_inline)) void element_loop(
   const int32_t* node2 = g.node2.data();
   const double *dxx = g.dm_inv_xx.data(), *dxy = g.dm_inv_xy.data(), *dyx = g.dm_inv_yx.data(),
                *dyy = g.dm_inv_yy.data(), *area0 = g.area0.data();
+  double *fxx = s.f_xx.data(), *fxy = s.f_xy.data(), *fyx = s.f_yx.data(), *fyy = s.f_yy.data();
   float *pxx = s.pv_xx.data(), *pxy = s.pv_xy.data(), *pyx = s.pv_yx.data(), *pyy = s.pv_yy.data();
 
-  // Edge vectors, the edges' displacement increments over the step (dt times the nodes'
-  // half-step velocities, which moved them: x+ - x = dt v*, integrator.cpp) and, with nodal
-  // pressures, the nodes' Tait state are gathered per block into
+  // Edge vectors (and, with nodal pressures, the nodes' Tait state) are gathered per block into
   // small contiguous buffers (indexed loads do not vectorise well); the element loop then
   // streams plain arrays. The loop body is branch-free and reduction-free (viscosity is
   // selected, not skipped; totals are reduced afterwards), so it vectorises, exp and log
   // included.
   constexpr std::size_t kBlock = 256;
   alignas(64) double edge1x[kBlock], edge1y[kBlock], edge2x[kBlock], edge2y[kBlock];
-  alignas(64) double step1x[kBlock], step1y[kBlock], step2x[kBlock], step2y[kBlock];
   alignas(64) double nodal_sm_sum[kBlock], nodal_k_max[kBlock];
   // Per-element results reduced after the (reduction-free, hence vectorisable) loop.
   alignas(64) double step_sq_out[kBlock], dissipation_out[kBlock], j_out[kBlock];
@@ -94,8 +95,6 @@ inline __attribute__((always_inline)) void element_loop(
       const int32_t a = node0[e], b = node1[e], c = node2[e];
       edge1x[k] = x[b] - x[a], edge1y[k] = y[b] - y[a];
       edge2x[k] = x[c] - x[a], edge2y[k] = y[c] - y[a];
-      step1x[k] = dt_increment * (vx[b] - vx[a]), step1y[k] = dt_increment * (vy[b] - vy[a]);
-      step2x[k] = dt_increment * (vx[c] - vx[a]), step2y[k] = dt_increment * (vy[c] - vy[a]);
       if constexpr (kNodal) {
         nodal_sm_sum[k] = nodal_sm[a] + nodal_sm[b] + nodal_sm[c];
         const double kab = nodal_k[a] > nodal_k[b] ? nodal_k[a] : nodal_k[b];
@@ -140,13 +139,8 @@ inline __attribute__((always_inline)) void element_loop(
       // Each is 1/(product of all five) times the other four: a few ulp, and (SI units; the
       // product ~1e-26 at 16.5k elements) far from under- or overflow for any mesh above a
       // nanometre.
-      // The step's increment dF = dt [v*] Dm^-1 from the velocities, not F - F_prev from a
-      // stored F_prev: no F to store and stream, and no cancellation between two nearly equal
-      // gradients (x+ - x has round-off ~eps |x|, dt v* ~eps |dt v|).
-      const cm::Mat2 df =
-          cm::deformation_gradient(step1x[k], step1y[k], step2x[k], step2y[k], dm_inv);
-      const cm::Mat2 f_prev{f[0] - df[0], f[1] - df[1], f[2] - df[2], f[3] - df[3]};
-      const double j_prev = cm::det(f_prev);
+      const cm::Mat2 f_prev{fxx[e], fxy[e], fyx[e], fyy[e]};
+      const double j_prev = cm::det(f_prev);  // bit for bit the J of the last evaluation
       const double l_sq = cm::longest_edge_sq(e1x, e1y, e2x, e2y);
       const double den_u = j + j_prev, den_v = j_prev * dt, den_z = dt * c_sq;
       const double p_a = j * l_sq, p_b = den_u * den_v;
@@ -170,7 +164,7 @@ inline __attribute__((always_inline)) void element_loop(
       // current area. Only h c enters: z = -h ln(J / J_prev) / (dt c) = -h c ln(..) / (dt c^2)
       // and nu = 3/4 h rho c (...), so one square root gives it.
       const double hc = std::sqrt((smallest_altitude ? h_sq : sqrt3 * j * area0[e]) * c_sq);
-      const double z = -hc * cm::log_ratio_u(cm::det_increment(cof, df) * inv_u) * inv_z;
+      const double z = -hc * cm::log_ratio_u((j - j_prev) * inv_u) * inv_z;
       // The thesis's artificial viscosity is a shear viscosity; the continuous one acts on
       // compression alone, as a bulk viscosity of the same longitudinal strength (4/3 nu), so a
       // planar shock sees the same viscous stress but isochoric (shear) flow -- the rim's
@@ -181,14 +175,16 @@ inline __attribute__((always_inline)) void element_loop(
       const double zeta = (1.0 - shear_share) * 4.0 / 3.0 * nu_art;
       step_sq_out[k] =
           cm::stable_step_sq_kinematic(h_sq, c_sq, (4.0 / 3.0 * nu + zeta) * j * inv_rho0);
-      const cm::Mat2 pv = cm::viscous_piola_increment(df, f_prev, cof, nu, zeta, inv_v);
+      const cm::Mat2 pv = cm::viscous_piola_inv(f, f_prev, cof, nu, zeta, inv_v);
       shear_out[e] = static_cast<float>(nu), bulk_out[e] = static_cast<float>(zeta);
       // Work of the viscous stress over the step, trapezoidal in time: what the integrator sees
       // as nodal viscous forces times the nodal displacement increments.
-      dissipation_out[k] = 0.5 * area0[e] *
-                           ((pv[0] + pxx[e]) * df[0] + (pv[1] + pxy[e]) * df[1] +
-                            (pv[2] + pyx[e]) * df[2] + (pv[3] + pyy[e]) * df[3]);
+      dissipation_out[k] =
+          0.5 * area0[e] *
+          ((pv[0] + pxx[e]) * (f[0] - f_prev[0]) + (pv[1] + pxy[e]) * (f[1] - f_prev[1]) +
+           (pv[2] + pyx[e]) * (f[2] - f_prev[2]) + (pv[3] + pyy[e]) * (f[3] - f_prev[3]));
 
+      fxx[e] = f[0], fxy[e] = f[1], fyx[e] = f[2], fyy[e] = f[3];
       pxx[e] = static_cast<float>(pv[0]), pxy[e] = static_cast<float>(pv[1]);
       pyx[e] = static_cast<float>(pv[2]), pyy[e] = static_cast<float>(pv[3]);
 
@@ -223,22 +219,22 @@ inline __attribute__((always_inline)) void element_loop(
 
 // Compiled for AVX-512, AVX2 and the baseline ISA; the loader picks one at start-up.
 __attribute__((target_clones("avx512f", "avx2", "default"))) void compute_element_forces(
-    const ElementGeometry& g, const double* x, const double* y, const double* vx, const double* vy,
-    const KernelParams& p, std::size_t begin, std::size_t end, ElementState& s,
-    KernelTotals& totals, double* node_fx, double* node_fy) {
+    const ElementGeometry& g, const double* x, const double* y, const KernelParams& p,
+    std::size_t begin, std::size_t end, ElementState& s, KernelTotals& totals, double* node_fx,
+    double* node_fy) {
   namespace cm = continuum;
   const int32_t *node0 = g.node0.data(), *node1 = g.node1.data(), *node2 = g.node2.data();
   const double *dxx = g.dm_inv_xx.data(), *dxy = g.dm_inv_xy.data(), *dyx = g.dm_inv_yx.data(),
                *dyy = g.dm_inv_yy.data();
   bool all_valid = true;
   if (p.nodal_mean_stress == nullptr)
-    element_loop<Volumetric::kElement>(g, x, y, vx, vy, p, begin, end, s, totals, node_fx, node_fy,
+    element_loop<Volumetric::kElement>(g, x, y, p, begin, end, s, totals, node_fx, node_fy,
                                        all_valid);
   else if (p.element_weight == 0.0)
-    element_loop<Volumetric::kNodal>(g, x, y, vx, vy, p, begin, end, s, totals, node_fx, node_fy,
+    element_loop<Volumetric::kNodal>(g, x, y, p, begin, end, s, totals, node_fx, node_fy,
                                      all_valid);
   else
-    element_loop<Volumetric::kBlend>(g, x, y, vx, vy, p, begin, end, s, totals, node_fx, node_fy,
+    element_loop<Volumetric::kBlend>(g, x, y, p, begin, end, s, totals, node_fx, node_fy,
                                      all_valid);
 
   if (!all_valid && totals.bad_element < 0) {  // rare: recompute J to name the first offender

@@ -17,17 +17,16 @@ struct ElementGeometry {
   std::size_t size() const { return area0.size(); }
 };
 
-// Element state carried from one force evaluation to the next. F is not among it: each
-// evaluation rebuilds F from the positions and the step's increment dF from the nodes'
-// velocities.
+// Element state carried from one force evaluation to the next.
 struct ElementState {
+  std::vector<double> f_xx, f_xy, f_yx, f_yy;  // F at the last evaluation (lags the viscosity)
   // Viscous P at the last evaluation and its shear nu and bulk zeta (Pa s), in single precision:
-  // the dynamics never read them back (each evaluation computes P_v afresh from F and dF, in
-  // double); only the dissipation's trapezoidal sum and the stress diagnostics do.
+  // the dynamics never read them back (each evaluation computes P_v afresh from F and F_prev,
+  // which stay double); only the dissipation's trapezoidal sum and the stress diagnostics do.
   std::vector<float> pv_xx, pv_xy, pv_yx, pv_yy;
   std::vector<float> viscosity, bulk_viscosity;
   void resize(std::size_t elements);
-  void reset_to_reference();  // P_v = 0
+  void reset_to_reference();  // F = I, P_v = 0
 };
 
 struct KernelParams {
@@ -53,7 +52,7 @@ struct KernelParams {
   const double* element_stress_shift = nullptr;
   double stabilization_beta_kappa = 0.0;
   double element_weight = 1.0;
-  double dt = 0;  // the step that led from the previous positions to these (x = x_prev + dt v)
+  double dt = 0;  // the step that led from the stored state to the current positions; 0 = none
 };
 
 struct KernelTotals {
@@ -64,14 +63,12 @@ struct KernelTotals {
   double bad_j = 0;
 };
 
-// Evaluates elements [begin, end) at positions (x, y): updates their state and adds their nodal
-// forces (acting on the nodes, = -f_int) to node_fx / node_fy, element by element in index
-// order — so the sums are deterministic for a given element range. (vx, vy) are the velocities
-// that moved the nodes over the last step, x = x_prev + params.dt v (the integrator's half-step
-// velocities); they give the lagged viscosity its rate and do not enter when params.dt = 0.
+// Evaluates elements [begin, end): updates their state and adds their nodal forces (acting on
+// the nodes, = -f_int) to node_fx / node_fy, element by element in index order — so the sums
+// are deterministic for a given element range.
 void compute_element_forces(const ElementGeometry& geometry, const double* x, const double* y,
-                            const double* vx, const double* vy, const KernelParams& params,
-                            std::size_t begin, std::size_t end, ElementState& state,
-                            KernelTotals& totals, double* node_fx, double* node_fy);
+                            const KernelParams& params, std::size_t begin, std::size_t end,
+                            ElementState& state, KernelTotals& totals, double* node_fx,
+                            double* node_fy);
 
 }  // namespace softshock

@@ -25,9 +25,8 @@ NondimensionalGroups nondimensional_groups(const Material& material,
 // kMesherRevision) or a default that normalize_spec does not write into the spec. Every summary
 // records it; the service reuses a stored result only from the same revision (docs/api.md).
 // 1 is the first recorded (2026-12-02); results written before carry none and read as 0.
-// 2: the viscosity's rate from the nodes' velocities instead of a stored F_prev (round-off).
-// 3: the ring mesher's hexagonal centre (ring_mesher.cpp).
-inline constexpr int kSolverRevision = 3;
+// 2: the ring mesher's hexagonal centre (ring_mesher.cpp).
+inline constexpr int kSolverRevision = 2;
 
 struct RunSummary {
   int solver_revision = kSolverRevision;  // of the solver that produced it; 0 = not recorded

@@ -305,8 +305,8 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
       std::fill(out_x, out_x + nn, 0.0);
       std::fill(out_y, out_y + nn, 0.0);
       partial[tid] = KernelTotals{};
-      compute_element_forces(geometry, x.data(), y.data(), vx.data(), vy.data(), params, e0, e1,
-                             elements, partial[tid], out_x, out_y);
+      compute_element_forces(geometry, x.data(), y.data(), params, e0, e1, elements, partial[tid],
+                             out_x, out_y);
     };
     // The kernel's CPU time: the element loop and the nodal-pressure passes before it.
     auto timed = [&](int tid, const auto& pass) {

@@ -18,7 +18,6 @@ struct KernelFixture {
   ElementGeometry g;
   ElementState s;
   KernelParams p;
-  std::vector<double> still;  // zero nodal velocities (dt = 0: the viscosity has no rate)
 
   KernelFixture() {
     p.kappa = 2e9, p.tait_n = 7.15, p.mu = 5e3, p.rho0 = 1000.0, p.c1 = 1.0, p.c2 = 0.1;
@@ -37,7 +36,6 @@ struct KernelFixture {
       g.dm_inv_yy[e] = a / det, g.area0[e] = 0.5 * det;
     }
     s.resize(ne);
-    still.assign(mesh.node_count(), 0.0);
   }
   // Deformed positions x = F X.
   void deform(const continuum::Mat2& f, std::vector<double>& x, std::vector<double>& y) const {
@@ -72,8 +70,8 @@ TEST(ElementKernel, PatchTestUniformDeformationGivesNoInteriorForceAndExactStres
   fx.deform(f, x, y);
   KernelTotals totals;
   std::vector<double> nfx(fx.mesh.node_count()), nfy(fx.mesh.node_count());
-  compute_element_forces(fx.g, x.data(), y.data(), fx.still.data(), fx.still.data(), fx.p, 0,
-                         fx.g.size(), fx.s, totals, nfx.data(), nfy.data());
+  compute_element_forces(fx.g, x.data(), y.data(), fx.p, 0, fx.g.size(), fx.s, totals, nfx.data(),
+                         nfy.data());
   ASSERT_LT(totals.bad_element, 0);
 
   // Scale of an element's nodal force: |P| * edge length (per metre of thickness).
@@ -106,8 +104,8 @@ TEST(ElementKernel, PatchTestUniformDeformationGivesNoInteriorForceAndExactStres
   for (std::size_t e = 0; e < fx.g.size(); ++e) {
     std::vector<double> ex(fx.mesh.node_count(), 0.0), ey(fx.mesh.node_count(), 0.0);
     KernelTotals one;
-    compute_element_forces(fx.g, x.data(), y.data(), fx.still.data(), fx.still.data(), fx.p, e,
-                           e + 1, fx.s, one, ex.data(), ey.data());
+    compute_element_forces(fx.g, x.data(), y.data(), fx.p, e, e + 1, fx.s, one, ex.data(),
+                           ey.data());
     const double f1x =
         -fx.g.area0[e] * (piola[0] * fx.g.dm_inv_xx[e] + piola[1] * fx.g.dm_inv_xy[e]);
     EXPECT_NEAR(ex[fx.g.node1[e]], f1x, 1e-9 * scale);
@@ -123,20 +121,14 @@ TEST(ElementKernel, RigidRotationProducesNoElasticOrViscousStress) {
   const int steps = 400;
   const double dt = 1e-10;
   double max_force = 0;
-  std::vector<double> x_prev = fx.mesh.x, y_prev = fx.mesh.y, vx, vy;
   for (int k = 1; k <= steps; ++k) {
     const double th = std::numbers::pi / 3 * k / steps;
     fx.deform({std::cos(th), -std::sin(th), std::sin(th), std::cos(th)}, x, y);
-    // The velocities that carried the nodes over the step (the integrator's half-step ones).
-    vx.resize(x.size()), vy.resize(y.size());
-    for (std::size_t i = 0; i < x.size(); ++i)
-      vx[i] = (x[i] - x_prev[i]) / dt, vy[i] = (y[i] - y_prev[i]) / dt;
-    x_prev = x, y_prev = y;
     fx.p.dt = dt;
     KernelTotals totals;
     std::vector<double> nfx(fx.mesh.node_count(), 0.0), nfy(fx.mesh.node_count(), 0.0);
-    compute_element_forces(fx.g, x.data(), y.data(), vx.data(), vy.data(), fx.p, 0, fx.g.size(),
-                           fx.s, totals, nfx.data(), nfy.data());
+    compute_element_forces(fx.g, x.data(), y.data(), fx.p, 0, fx.g.size(), fx.s, totals, nfx.data(),
+                           nfy.data());
     ASSERT_LT(totals.bad_element, 0);
     for (std::size_t i = 0; i < nfx.size(); ++i)
       max_force = std::max(max_force, std::hypot(nfx[i], nfy[i]));
@@ -166,8 +158,8 @@ TEST(ElementKernel, InvertedElementIsReported) {
   x[victim] = -1e-5;  // pull one node through the opposite edge
   KernelTotals totals;
   std::vector<double> nfx(x.size(), 0.0), nfy(x.size(), 0.0);
-  compute_element_forces(fx.g, x.data(), y.data(), fx.still.data(), fx.still.data(), fx.p, 0,
-                         fx.g.size(), fx.s, totals, nfx.data(), nfy.data());
+  compute_element_forces(fx.g, x.data(), y.data(), fx.p, 0, fx.g.size(), fx.s, totals, nfx.data(),
+                         nfy.data());
   EXPECT_GE(totals.bad_element, 0);
   EXPECT_LE(totals.bad_j, 0.0);
 }
@@ -197,8 +189,8 @@ NodalRun nodal_forces(KernelFixture& fx, const std::vector<double>& x, const std
   p.element_weight = 0.0;
   NodalRun r;
   r.fx.assign(nn, 0.0), r.fy.assign(nn, 0.0);
-  compute_element_forces(fx.g, x.data(), y.data(), fx.still.data(), fx.still.data(), p, 0, ne, fx.s,
-                         r.totals, r.fx.data(), r.fy.data());
+  compute_element_forces(fx.g, x.data(), y.data(), p, 0, ne, fx.s, r.totals, r.fx.data(),
+                         r.fy.data());
   return r;
 }
 
