@@ -208,10 +208,10 @@ TEST(LateTimeVerification, RimSpectrumDoesNotFollowTheMeshOrientation) {
 // ratio <= 15 at 800 ns and at any time before, raw A-bar < 0.5 (the issue's figures). Every step
 // counts (History::min_dt, the smallest step between samples; the samples' dt alone missed the
 // deepest dips: 58.4 against 50.7 ps on the mesh before the hexagonal centre). After 300 ns the
-// step never falls below its floor in the first cycle, which is physical: the converging shock's
-// focus at the centre (~28 ns, J ~ 0.6, where the Tait bulk modulus is ~30 kappa). The issue's
-// "no dt below 100 ps after 300 ns" is not met: the shock refocuses at ~388 ns and compresses
-// the equilateral elements of ring 1 to J ~ 0.62, 84 ps (docs/verification.md). What is
+// step never falls below its floor in the first cycle (26.9 ps), which is physical: the
+// converging shock's focus at the centre (~28 ns). The issue's "no dt below 100 ps after 300 ns"
+// is not met: the shock refocuses at ~388 ns and compresses the equilateral elements of ring 1 to
+// J ~ 0.62-0.70, where the Tait bulk modulus is 13-30 kappa: 84.4 ps (docs/verification.md). What is
 // asserted instead is the issue's diagnosis turned round: every step below 100 ps after 300 ns is
 // set within 10 um of the centre -- the focus, not the mesh's shape --, elements within 10 um of
 // the rim (where the issue saw the slivers that set it) set no step below 100 ps, and the stretched

@@ -247,9 +247,9 @@ TEST(PhysicsValidation, BaselineEventTimesMatchTheThesis) {
 // per-thread force arrays summed in thread order); across thread counts only the summation order
 // of the nodal forces differs, so results agree to round-off.
 // The energy left after the first pass (70 ns) with the default formulation is a converged
-// figure: 16.5k and 66k elements agree within the 2 % (measured 0.3 %; 264k 1.478 J/m,
-// docs/verification.md). The inviscid model is not yet converged at 16.5k (1.600 -> 1.567 ->
-// 1.551 J/m on 16.5k / 66k / 264k): the 1.589 J/m is its 16.5k figure.
+// figure: 16.5k and 66k elements agree within the 2 % (measured 0.3 %; 264k 1.477 J/m,
+// docs/verification.md). The inviscid model is not yet converged at 16.5k (1.598 -> 1.567 ->
+// 1.552 J/m on 16.5k / 66k / 264k): the 1.589 J/m is its 16.5k figure.
 TEST(PhysicsValidation, EnergyAfterTheFirstPassConvergesUnderRefinement) {
   auto retained = [](int elements) {
     const RunResult r =
