@@ -211,9 +211,9 @@ TEST(LateTimeVerification, RimSpectrumDoesNotFollowTheMeshOrientation) {
 // step never falls below its floor in the first cycle (26.9 ps), which is physical: the
 // converging shock's focus at the centre (~28 ns). The issue's "no dt below 100 ps after 300 ns"
 // is not met: the shock refocuses at ~388 ns and compresses the equilateral elements of ring 1 to
-// J ~ 0.62-0.70, where the Tait bulk modulus is 13-30 kappa: 84.4 ps (docs/verification.md). What is
-// asserted instead is the issue's diagnosis turned round: every step below 100 ps after 300 ns is
-// set within 10 um of the centre -- the focus, not the mesh's shape --, elements within 10 um of
+// J ~ 0.62-0.70, where the Tait bulk modulus is 13-30 kappa: 84.4 ps (docs/verification.md). What
+// is asserted instead is the issue's diagnosis turned round: every step below 100 ps after 300 ns
+// is set within 10 um of the centre -- the focus, not the mesh's shape --, elements within 10 um of
 // the rim (where the issue saw the slivers that set it) set no step below 100 ps, and the stretched
 // elements of the erupting lobes (aspect ratio up to ~11 from ~590 ns; sampled) set steps of 110 ps
 // and more. Then the 66k mesh: its raw A-bar within the issue's 25 % of the 16.5k one at 400-800 ns
