@@ -64,8 +64,6 @@ def robustness_table(work):
             if not os.path.exists(os.path.join(d, "result.h5")):
                 continue
             f, ts, modes, s = load(d)
-            t = ts["time"]
-            late = t >= 300e-9
             print("| %s | %d | %d | %.1f | %.1f | %.3f / %.3f | %d | %.1f |" % (
                 kind, s["elements"], s["steps"], late_min_dt(ts) * 1e12,
                 last_frame_aspect_ratio(f), ts["abar"][-1],
@@ -199,7 +197,6 @@ def pbar_table(work):
     print("|---|---|---|---|---|---|---|---|")
     for pbar, d in pbar_runs(work):
         f, ts, modes, s = load(d)
-        late = ts["time"] >= 300e-9
         above = s["aspect_ratio_above_10_s"]
         print("| %g | %d | %.1f | %.1f / %.1f | %s | %.3f | %.3f | %.1f |" % (
             pbar, s["steps"], late_min_dt(ts) * 1e12, s["max_aspect_ratio"],

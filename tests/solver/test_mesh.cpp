@@ -20,6 +20,7 @@
 #include <utility>
 #include <vector>
 
+#include "solver/continuum.hpp"
 #include "solver/gmsh_mesher.hpp"
 #include "solver/mesh.hpp"
 #include "solver/ring_mesher.hpp"
@@ -451,13 +452,10 @@ TEST(RingDiskMesh, ValidAtEverySizeAndNoElementMuchThinnerThanTheMedian) {
     EXPECT_NEAR(static_cast<double>(m.element_count()), target, 0.08 * target);
     expect_disk_geometry(m, 90e-6);
     std::vector<double> altitude;
-    for (const auto& t : m.triangles) {
-      const double a = edge_length(m, t[0], t[1]), b = edge_length(m, t[1], t[2]),
-                   c = edge_length(m, t[2], t[0]);
-      const double twice_area = std::fabs((m.x[t[1]] - m.x[t[0]]) * (m.y[t[2]] - m.y[t[0]]) -
-                                          (m.y[t[1]] - m.y[t[0]]) * (m.x[t[2]] - m.x[t[0]]));
-      altitude.push_back(twice_area / std::max({a, b, c}));
-    }
+    for (const auto& t : m.triangles)
+      altitude.push_back(
+          std::sqrt(continuum::smallest_altitude_sq(m.x[t[1]] - m.x[t[0]], m.y[t[1]] - m.y[t[0]],
+                                                    m.x[t[2]] - m.x[t[0]], m.y[t[2]] - m.y[t[0]])));
     const double smallest = *std::min_element(altitude.begin(), altitude.end());
     std::nth_element(altitude.begin(), altitude.begin() + altitude.size() / 2, altitude.end());
     const double median = altitude[altitude.size() / 2];
