@@ -31,6 +31,13 @@ void ElementState::reset_to_reference() {
   }
 }
 
+__attribute__((target_clones("avx512f", "avx2", "default"))) void pack_nodes(
+    const double* x, const double* y, const double* mean_stress, const double* bulk_modulus,
+    std::size_t begin, std::size_t end, PackedNode* out) {
+  for (std::size_t i = begin; i < end; ++i)
+    out[i].lanes = NodeLanes{x[i], y[i], mean_stress[i], bulk_modulus[i]};
+}
+
 namespace {
 
 // How an element gets its volumetric stress: its own Tait law (plain P1), the mean of its nodes'
@@ -60,8 +67,7 @@ inline __attribute__((always_inline)) void element_loop(const ElementGeometry& g
   const double shear_share = p.artificial_shear;
   float *shear_out = s.viscosity.data(), *bulk_out = s.bulk_viscosity.data();
   const double w_element = kNodal ? p.element_weight : 1.0, w_nodal = 1.0 - w_element;
-  const double* nodal_sm = p.nodal_mean_stress;
-  const double* nodal_k = p.nodal_bulk_modulus;
+  const PackedNode* nodes = p.nodes;
   const double* shift = p.element_stress_shift;
   const double beta_kappa = p.stabilization_beta_kappa;
   const double sqrt3 = std::sqrt(3.0);
@@ -74,8 +80,9 @@ inline __attribute__((always_inline)) void element_loop(const ElementGeometry& g
   double *fxx = s.f_xx.data(), *fxy = s.f_xy.data(), *fyx = s.f_yx.data(), *fyy = s.f_yy.data();
   float *pxx = s.pv_xx.data(), *pxy = s.pv_xy.data(), *pyx = s.pv_yx.data(), *pyy = s.pv_yy.data();
 
-  // Edge vectors (and, with nodal pressures, the nodes' Tait state) are gathered per block into
-  // small contiguous buffers (indexed loads do not vectorise well); the element loop then
+  // Edge vectors (and, with nodal pressures, the nodes' Tait state: one PackedNode row per
+  // corner) are gathered per block into small contiguous buffers (indexed loads do not vectorise
+  // well); the element loop then
   // streams plain arrays. The loop body is branch-free and reduction-free (viscosity is
   // selected, not skipped; totals are reduced afterwards), so it vectorises, exp and log
   // included.
@@ -90,15 +97,23 @@ inline __attribute__((always_inline)) void element_loop(const ElementGeometry& g
   int64_t min_step_element = totals.min_step_element;
   for (std::size_t block = begin; block < end; block += kBlock) {
     const std::size_t count = std::min(kBlock, end - block);
-    for (std::size_t k = 0; k < count; ++k) {
-      const std::size_t e = block + k;
-      const int32_t a = node0[e], b = node1[e], c = node2[e];
-      edge1x[k] = x[b] - x[a], edge1y[k] = y[b] - y[a];
-      edge2x[k] = x[c] - x[a], edge2y[k] = y[c] - y[a];
-      if constexpr (kNodal) {
-        nodal_sm_sum[k] = nodal_sm[a] + nodal_sm[b] + nodal_sm[c];
-        const double kab = nodal_k[a] > nodal_k[b] ? nodal_k[a] : nodal_k[b];
-        nodal_k_max[k] = kab > nodal_k[c] ? kab : nodal_k[c];
+    if constexpr (kNodal) {
+      for (std::size_t k = 0; k < count; ++k) {
+        const std::size_t e = block + k;
+        const NodeLanes na = nodes[node0[e]].lanes, nb = nodes[node1[e]].lanes,
+                        nc = nodes[node2[e]].lanes;
+        const NodeLanes edge1 = nb - na, edge2 = nc - na, sum = na + nb + nc;
+        const NodeLanes max_ab = na > nb ? na : nb;
+        const NodeLanes max_abc = max_ab > nc ? max_ab : nc;
+        edge1x[k] = edge1[0], edge1y[k] = edge1[1], edge2x[k] = edge2[0], edge2y[k] = edge2[1];
+        nodal_sm_sum[k] = sum[2], nodal_k_max[k] = max_abc[3];
+      }
+    } else {
+      for (std::size_t k = 0; k < count; ++k) {
+        const std::size_t e = block + k;
+        const int32_t a = node0[e], b = node1[e], c = node2[e];
+        edge1x[k] = x[b] - x[a], edge1y[k] = y[b] - y[a];
+        edge2x[k] = x[c] - x[a], edge2y[k] = y[c] - y[a];
       }
     }
 #pragma GCC ivdep
@@ -227,7 +242,7 @@ __attribute__((target_clones("avx512f", "avx2", "default"))) void compute_elemen
   const double *dxx = g.dm_inv_xx.data(), *dxy = g.dm_inv_xy.data(), *dyx = g.dm_inv_yx.data(),
                *dyy = g.dm_inv_yy.data();
   bool all_valid = true;
-  if (p.nodal_mean_stress == nullptr)
+  if (p.nodes == nullptr)
     element_loop<Volumetric::kElement>(g, x, y, p, begin, end, s, totals, node_fx, node_fy,
                                        all_valid);
   else if (p.element_weight == 0.0)

@@ -222,7 +222,8 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
   params.eta = problem.material.shear_viscosity_Pa_s;
 
   // Average nodal pressure: nodal areas, each node's Tait state, then the stabilisation of the
-  // element-level volume modes, before the element loop (nodal_pressure.hpp).
+  // element-level volume modes, before the element loop (nodal_pressure.hpp); the last nodal
+  // pass packs each node's position and state into one row for the loop's gather.
   const bool nodal = problem.element.formulation == ElementFormulation::kAverageNodalPressure;
   const double beta_kappa = problem.element.stabilization * params.kappa;
   const std::size_t nodal_n = nodal ? nn : 0, nodal_e = nodal ? ne : 0;
@@ -230,13 +231,13 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
       nodal ? reference_nodal_areas(geometry, nn) : std::vector<double>{};
   std::vector<double> nodal_area(nodal_n), nodal_j(nodal_n), nodal_sm(nodal_n), nodal_k(nodal_n),
       nodal_q(nodal_n), j_element(nodal_e), s_element(nodal_e, 0.0);
+  std::vector<PackedNode> packed_nodes(nodal_n);
   std::vector<std::vector<double>> thread_area(nodal && threads > 1 ? threads : 0),
       thread_q(nodal && threads > 1 ? threads : 0);
   for (auto* v : {&thread_area, &thread_q})
     for (auto& a : *v) a.resize(nn);
   if (nodal) {
-    params.nodal_mean_stress = nodal_sm.data();
-    params.nodal_bulk_modulus = nodal_k.data();
+    params.nodes = packed_nodes.data();
     params.element_stress_shift = s_element.data();
     params.element_weight = problem.element.element_weight;
     params.stabilization_beta_kappa = beta_kappa;
@@ -285,6 +286,9 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
       if (threads > 1) sum_threads(thread_area, n0, n1, nodal_area.data());
       nodal_tait_state(params.kappa, params.tait_n, nodal_area0.data(), nodal_area.data(), n0, n1,
                        nodal_j.data(), nodal_sm.data(), nodal_k.data());
+      if (beta_kappa <= 0)
+        pack_nodes(x.data(), y.data(), nodal_sm.data(), nodal_k.data(), n0, n1,
+                   packed_nodes.data());
     };
     auto stabilization = [&](int tid) {  // pass 3: element discrepancies, their nodal shares
       const auto [e0, e1] = element_range(tid);
@@ -297,6 +301,7 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
       const auto [n0, n1] = node_range(tid);
       if (threads > 1) sum_threads(thread_q, n0, n1, nodal_q.data());
       subtract_stabilization(nodal_area0.data(), nodal_q.data(), n0, n1, nodal_sm.data());
+      pack_nodes(x.data(), y.data(), nodal_sm.data(), nodal_k.data(), n0, n1, packed_nodes.data());
     };
     auto work = [&](int tid) {
       const std::size_t e0 = ne * tid / threads, e1 = ne * (tid + 1) / threads;

@@ -184,7 +184,9 @@ NodalRun nodal_forces(KernelFixture& fx, const std::vector<double>& x, const std
                            q.data());
   subtract_stabilization(v0.data(), q.data(), 0, nn, sm.data());
   KernelParams p = fx.p;
-  p.nodal_mean_stress = sm.data(), p.nodal_bulk_modulus = k.data();
+  std::vector<PackedNode> nodes(nn);
+  pack_nodes(x.data(), y.data(), sm.data(), k.data(), 0, nn, nodes.data());
+  p.nodes = nodes.data();
   p.element_stress_shift = se.data(), p.stabilization_beta_kappa = beta * fx.p.kappa;
   p.element_weight = 0.0;
   NodalRun r;
