@@ -51,8 +51,7 @@ inline __attribute__((always_inline)) void element_loop(const ElementGeometry& g
                                                         const double* y, const KernelParams& p,
                                                         std::size_t begin, std::size_t end,
                                                         ElementState& s, KernelTotals& totals,
-                                                        double* node_fx, double* node_fy,
-                                                        bool& all_valid) {
+                                                        NodeForce* node_force, bool& all_valid) {
   namespace cm = continuum;
   constexpr bool kNodal = kVolumetric != Volumetric::kElement;
   const double n = p.tait_n;
@@ -219,10 +218,10 @@ inline __attribute__((always_inline)) void element_loop(const ElementGeometry& g
         min_step_sq = step_sq_out[k], min_step_element = static_cast<int64_t>(e);
       dissipation += dissipation_out[k];
       all_valid &= j_out[k] > 0.0;  // false for J <= 0 and for NaN
-      node_fx[node0[e]] -= f1x_out[k] + f2x_out[k];
-      node_fy[node0[e]] -= f1y_out[k] + f2y_out[k];
-      node_fx[node1[e]] += f1x_out[k], node_fy[node1[e]] += f1y_out[k];
-      node_fx[node2[e]] += f2x_out[k], node_fy[node2[e]] += f2y_out[k];
+      const ForceLanes f1{f1x_out[k], f1y_out[k]}, f2{f2x_out[k], f2y_out[k]};
+      node_force[node0[e]].lanes -= f1 + f2;
+      node_force[node1[e]].lanes += f1;
+      node_force[node2[e]].lanes += f2;
     }
   }
   totals.min_step_sq = min_step_sq;
@@ -235,22 +234,19 @@ inline __attribute__((always_inline)) void element_loop(const ElementGeometry& g
 // Compiled for AVX-512, AVX2 and the baseline ISA; the loader picks one at start-up.
 __attribute__((target_clones("avx512f", "avx2", "default"))) void compute_element_forces(
     const ElementGeometry& g, const double* x, const double* y, const KernelParams& p,
-    std::size_t begin, std::size_t end, ElementState& s, KernelTotals& totals, double* node_fx,
-    double* node_fy) {
+    std::size_t begin, std::size_t end, ElementState& s, KernelTotals& totals,
+    NodeForce* node_force) {
   namespace cm = continuum;
   const int32_t *node0 = g.node0.data(), *node1 = g.node1.data(), *node2 = g.node2.data();
   const double *dxx = g.dm_inv_xx.data(), *dxy = g.dm_inv_xy.data(), *dyx = g.dm_inv_yx.data(),
                *dyy = g.dm_inv_yy.data();
   bool all_valid = true;
   if (p.nodes == nullptr)
-    element_loop<Volumetric::kElement>(g, x, y, p, begin, end, s, totals, node_fx, node_fy,
-                                       all_valid);
+    element_loop<Volumetric::kElement>(g, x, y, p, begin, end, s, totals, node_force, all_valid);
   else if (p.element_weight == 0.0)
-    element_loop<Volumetric::kNodal>(g, x, y, p, begin, end, s, totals, node_fx, node_fy,
-                                     all_valid);
+    element_loop<Volumetric::kNodal>(g, x, y, p, begin, end, s, totals, node_force, all_valid);
   else
-    element_loop<Volumetric::kBlend>(g, x, y, p, begin, end, s, totals, node_fx, node_fy,
-                                     all_valid);
+    element_loop<Volumetric::kBlend>(g, x, y, p, begin, end, s, totals, node_force, all_valid);
 
   if (!all_valid && totals.bad_element < 0) {  // rare: recompute J to name the first offender
     for (std::size_t e = begin; e < end; ++e) {

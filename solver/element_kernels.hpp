@@ -6,6 +6,8 @@
 #include <cstdint>
 #include <vector>
 
+#include "node_layout.hpp"
+
 namespace softshock {
 
 // Reference geometry of the P1 elements (constant during a run).
@@ -29,14 +31,6 @@ struct ElementState {
   void reset_to_reference();  // F = I, P_v = 0
 };
 
-// One node as the nodal-pressure element loop reads it: position and Tait state in one 32-byte
-// row, so a corner costs one vector load instead of four scalar ones from four arrays (the block
-// gather was the loop's largest cost). A GCC lane vector, so the loop does the corner arithmetic
-// on all four at once.
-typedef double NodeLanes __attribute__((vector_size(32)));
-struct alignas(32) PackedNode {
-  NodeLanes lanes;  // x, y (m), mean stress (Pa), bulk modulus (Pa)
-};
 // out[i] = {x, y, mean stress, bulk modulus} of node i, for i in [begin, end).
 void pack_nodes(const double* x, const double* y, const double* mean_stress,
                 const double* bulk_modulus, std::size_t begin, std::size_t end, PackedNode* out);
@@ -76,11 +70,10 @@ struct KernelTotals {
 };
 
 // Evaluates elements [begin, end): updates their state and adds their nodal forces (acting on
-// the nodes, = -f_int) to node_fx / node_fy, element by element in index order — so the sums
-// are deterministic for a given element range.
+// the nodes, = -f_int) to node_force, element by element in index order — so the sums are
+// deterministic for a given element range.
 void compute_element_forces(const ElementGeometry& geometry, const double* x, const double* y,
                             const KernelParams& params, std::size_t begin, std::size_t end,
-                            ElementState& state, KernelTotals& totals, double* node_fx,
-                            double* node_fy);
+                            ElementState& state, KernelTotals& totals, NodeForce* node_force);
 
 }  // namespace softshock

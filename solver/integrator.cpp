@@ -15,14 +15,14 @@ __attribute__((target_clones("avx512f", "avx2", "default"))) void predict_nodes(
 }
 
 __attribute__((target_clones("avx512f", "avx2", "default"))) void correct_nodes(
-    double dt, std::size_t begin, std::size_t end, const double* __restrict fx,
-    const double* __restrict fy, const double* __restrict fext_x, const double* __restrict fext_y,
+    double dt, std::size_t begin, std::size_t end, const NodeForce* __restrict force,
+    const double* __restrict fext_x, const double* __restrict fext_y,
     const uint8_t* __restrict free_x, const uint8_t* __restrict free_y,
     const double* __restrict mass, double* __restrict ax, double* __restrict ay,
     double* __restrict vx, double* __restrict vy) {
   for (std::size_t i = begin; i < end; ++i) {
-    ax[i] = free_x[i] * (fx[i] + fext_x[i]) / mass[i];
-    ay[i] = free_y[i] * (fy[i] + fext_y[i]) / mass[i];
+    ax[i] = free_x[i] * (force[i].lanes[0] + fext_x[i]) / mass[i];
+    ay[i] = free_y[i] * (force[i].lanes[1] + fext_y[i]) / mass[i];
     vx[i] += 0.5 * dt * ax[i];
     vy[i] += 0.5 * dt * ay[i];
   }

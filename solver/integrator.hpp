@@ -5,6 +5,8 @@
 #include <cstddef>
 #include <cstdint>
 
+#include "node_layout.hpp"
+
 namespace softshock {
 
 // Predictor over nodes [begin, end): x += dt v + dt^2/2 a; v += dt/2 a.
@@ -13,11 +15,10 @@ void predict_nodes(double dt, std::size_t begin, std::size_t end, double* __rest
                    const double* __restrict ax, const double* __restrict ay);
 
 // Corrector over nodes [begin, end): a = free (f + f_ext) / m; v += dt/2 a.
-void correct_nodes(double dt, std::size_t begin, std::size_t end, const double* __restrict fx,
-                   const double* __restrict fy, const double* __restrict fext_x,
-                   const double* __restrict fext_y, const uint8_t* __restrict free_x,
-                   const uint8_t* __restrict free_y, const double* __restrict mass,
-                   double* __restrict ax, double* __restrict ay, double* __restrict vx,
-                   double* __restrict vy);
+void correct_nodes(double dt, std::size_t begin, std::size_t end, const NodeForce* __restrict force,
+                   const double* __restrict fext_x, const double* __restrict fext_y,
+                   const uint8_t* __restrict free_x, const uint8_t* __restrict free_y,
+                   const double* __restrict mass, double* __restrict ax, double* __restrict ay,
+                   double* __restrict vx, double* __restrict vy);
 
 }  // namespace softshock

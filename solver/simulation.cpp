@@ -158,7 +158,7 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
 
   std::vector<double> x = mesh.x, y = mesh.y;
   std::vector<double> vx(nn, 0.0), vy(nn, 0.0), ax(nn, 0.0), ay(nn, 0.0);
-  std::vector<double> fx(nn), fy(nn);
+  std::vector<NodeForce> force(nn);
   if (!problem.initial_vx.empty()) vx = problem.initial_vx;
   if (!problem.initial_vy.empty()) vy = problem.initial_vy;
   std::vector<uint8_t> free_x(nn, 1), free_y(nn, 1);
@@ -250,10 +250,8 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
   // totals are summed in thread order, so results depend only on the thread count.
   std::vector<KernelTotals> partial(threads);
   std::vector<double> kernel_seconds(threads, 0.0);  // per thread: RunResult::kernel_time_s
-  std::vector<std::vector<double>> thread_fx(threads > 1 ? threads : 0),
-      thread_fy(threads > 1 ? threads : 0);
-  for (auto* v : {&thread_fx, &thread_fy})
-    for (auto& f : *v) f.resize(nn);
+  std::vector<std::vector<NodeForce>> thread_force(threads > 1 ? threads : 0);
+  for (auto& f : thread_force) f.resize(nn);
   auto evaluate = [&](double t, double dt) {
     params.dt = dt;
     auto node_range = [&](int tid) {
@@ -305,13 +303,11 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
     };
     auto work = [&](int tid) {
       const std::size_t e0 = ne * tid / threads, e1 = ne * (tid + 1) / threads;
-      double* out_x = threads > 1 ? thread_fx[tid].data() : fx.data();
-      double* out_y = threads > 1 ? thread_fy[tid].data() : fy.data();
-      std::fill(out_x, out_x + nn, 0.0);
-      std::fill(out_y, out_y + nn, 0.0);
+      NodeForce* out = threads > 1 ? thread_force[tid].data() : force.data();
+      std::fill(out, out + nn, NodeForce{});
       partial[tid] = KernelTotals{};
       compute_element_forces(geometry, x.data(), y.data(), params, e0, e1, elements, partial[tid],
-                             out_x, out_y);
+                             out);
     };
     // The kernel's CPU time: the element loop and the nodal-pressure passes before it.
     auto timed = [&](int tid, const auto& pass) {
@@ -323,12 +319,12 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
       const auto [n0, n1] = node_range(tid);
       if (threads > 1) {
         for (std::size_t i = n0; i < n1; ++i) {
-          double sx = 0.0, sy = 0.0;
-          for (int k = 0; k < threads; ++k) sx += thread_fx[k][i], sy += thread_fy[k][i];
-          fx[i] = sx, fy[i] = sy;
+          ForceLanes sum{0.0, 0.0};
+          for (int k = 0; k < threads; ++k) sum += thread_force[k][i].lanes;
+          force[i].lanes = sum;
         }
       }
-      correct_nodes(dt, n0, n1, fx.data(), fy.data(), fext_x.data(), fext_y.data(), free_x.data(),
+      correct_nodes(dt, n0, n1, force.data(), fext_x.data(), fext_y.data(), free_x.data(),
                     free_y.data(), mass.data(), ax.data(), ay.data(), vx.data(), vy.data());
     };
     if (threads == 1) {

@@ -1,0 +1,22 @@
+// Per-node rows the hot loops gather from and scatter to: one vector load or store per corner
+// instead of one scalar per field and array (indexed node access was the element loop's largest
+// cost). GCC lane vectors, so the corner arithmetic runs on all lanes at once; wrapped in structs
+// so that std::vector holds them with their alignment.
+#pragma once
+
+namespace softshock {
+
+typedef double NodeLanes __attribute__((vector_size(32)));
+typedef double ForceLanes __attribute__((vector_size(16)));
+
+// What the nodal-pressure element loop reads of a node (pack_nodes, element_kernels.hpp).
+struct alignas(32) PackedNode {
+  NodeLanes lanes;  // x, y (m), mean stress (Pa), bulk modulus (Pa)
+};
+
+// The internal force on a node, N/m (per metre of thickness).
+struct alignas(16) NodeForce {
+  ForceLanes lanes;  // x, y
+};
+
+}  // namespace softshock
