@@ -31,11 +31,16 @@ void ElementState::reset_to_reference() {
   }
 }
 
-__attribute__((target_clones("avx512f", "avx2", "default"))) void pack_nodes(
-    const double* x, const double* y, const double* mean_stress, const double* bulk_modulus,
-    std::size_t begin, std::size_t end, PackedNode* out) {
+void pack_positions(const double* x, const double* y, std::size_t begin, std::size_t end,
+                    PackedNode* nodes) {
+  for (std::size_t i = begin; i < end; ++i) nodes[i].lanes[0] = x[i], nodes[i].lanes[1] = y[i];
+}
+
+__attribute__((target_clones("avx512f", "avx2", "default"))) void pack_nodal_state(
+    const double* mean_stress, const double* bulk_modulus, std::size_t begin, std::size_t end,
+    PackedNode* nodes) {
   for (std::size_t i = begin; i < end; ++i)
-    out[i].lanes = NodeLanes{x[i], y[i], mean_stress[i], bulk_modulus[i]};
+    nodes[i].lanes[2] = mean_stress[i], nodes[i].lanes[3] = bulk_modulus[i];
 }
 
 namespace {
@@ -47,11 +52,12 @@ enum class Volumetric { kElement, kNodal, kBlend };
 // The element loop, once per volumetric variant; inlined into the target_clones entry point
 // below so each ISA gets its own vectorised copy.
 template <Volumetric kVolumetric>
-inline __attribute__((always_inline)) void element_loop(const ElementGeometry& g, const double* x,
-                                                        const double* y, const KernelParams& p,
-                                                        std::size_t begin, std::size_t end,
-                                                        ElementState& s, KernelTotals& totals,
-                                                        NodeForce* node_force, bool& all_valid) {
+inline __attribute__((always_inline)) void element_loop(const ElementGeometry& g,
+                                                        const PackedNode* nodes,
+                                                        const KernelParams& p, std::size_t begin,
+                                                        std::size_t end, ElementState& s,
+                                                        KernelTotals& totals, NodeForce* node_force,
+                                                        bool& all_valid) {
   namespace cm = continuum;
   constexpr bool kNodal = kVolumetric != Volumetric::kElement;
   const double n = p.tait_n;
@@ -66,7 +72,6 @@ inline __attribute__((always_inline)) void element_loop(const ElementGeometry& g
   const double shear_share = p.artificial_shear;
   float *shear_out = s.viscosity.data(), *bulk_out = s.bulk_viscosity.data();
   const double w_element = kNodal ? p.element_weight : 1.0, w_nodal = 1.0 - w_element;
-  const PackedNode* nodes = p.nodes;
   const double* shift = p.element_stress_shift;
   const double beta_kappa = p.stabilization_beta_kappa;
   const double sqrt3 = std::sqrt(3.0);
@@ -96,23 +101,16 @@ inline __attribute__((always_inline)) void element_loop(const ElementGeometry& g
   int64_t min_step_element = totals.min_step_element;
   for (std::size_t block = begin; block < end; block += kBlock) {
     const std::size_t count = std::min(kBlock, end - block);
-    if constexpr (kNodal) {
-      for (std::size_t k = 0; k < count; ++k) {
-        const std::size_t e = block + k;
-        const NodeLanes na = nodes[node0[e]].lanes, nb = nodes[node1[e]].lanes,
-                        nc = nodes[node2[e]].lanes;
-        const NodeLanes edge1 = nb - na, edge2 = nc - na, sum = na + nb + nc;
-        const NodeLanes max_ab = na > nb ? na : nb;
+    for (std::size_t k = 0; k < count; ++k) {
+      const std::size_t e = block + k;
+      const NodeLanes na = nodes[node0[e]].lanes, nb = nodes[node1[e]].lanes,
+                      nc = nodes[node2[e]].lanes;
+      const NodeLanes edge1 = nb - na, edge2 = nc - na;
+      edge1x[k] = edge1[0], edge1y[k] = edge1[1], edge2x[k] = edge2[0], edge2y[k] = edge2[1];
+      if constexpr (kNodal) {
+        const NodeLanes sum = na + nb + nc, max_ab = na > nb ? na : nb;
         const NodeLanes max_abc = max_ab > nc ? max_ab : nc;
-        edge1x[k] = edge1[0], edge1y[k] = edge1[1], edge2x[k] = edge2[0], edge2y[k] = edge2[1];
         nodal_sm_sum[k] = sum[2], nodal_k_max[k] = max_abc[3];
-      }
-    } else {
-      for (std::size_t k = 0; k < count; ++k) {
-        const std::size_t e = block + k;
-        const int32_t a = node0[e], b = node1[e], c = node2[e];
-        edge1x[k] = x[b] - x[a], edge1y[k] = y[b] - y[a];
-        edge2x[k] = x[c] - x[a], edge2y[k] = y[c] - y[a];
       }
     }
 #pragma GCC ivdep
@@ -233,26 +231,26 @@ inline __attribute__((always_inline)) void element_loop(const ElementGeometry& g
 
 // Compiled for AVX-512, AVX2 and the baseline ISA; the loader picks one at start-up.
 __attribute__((target_clones("avx512f", "avx2", "default"))) void compute_element_forces(
-    const ElementGeometry& g, const double* x, const double* y, const KernelParams& p,
-    std::size_t begin, std::size_t end, ElementState& s, KernelTotals& totals,
-    NodeForce* node_force) {
+    const ElementGeometry& g, const PackedNode* nodes, const KernelParams& p, std::size_t begin,
+    std::size_t end, ElementState& s, KernelTotals& totals, NodeForce* node_force) {
   namespace cm = continuum;
   const int32_t *node0 = g.node0.data(), *node1 = g.node1.data(), *node2 = g.node2.data();
   const double *dxx = g.dm_inv_xx.data(), *dxy = g.dm_inv_xy.data(), *dyx = g.dm_inv_yx.data(),
                *dyy = g.dm_inv_yy.data();
   bool all_valid = true;
-  if (p.nodes == nullptr)
-    element_loop<Volumetric::kElement>(g, x, y, p, begin, end, s, totals, node_force, all_valid);
+  if (!p.nodal_pressure)
+    element_loop<Volumetric::kElement>(g, nodes, p, begin, end, s, totals, node_force, all_valid);
   else if (p.element_weight == 0.0)
-    element_loop<Volumetric::kNodal>(g, x, y, p, begin, end, s, totals, node_force, all_valid);
+    element_loop<Volumetric::kNodal>(g, nodes, p, begin, end, s, totals, node_force, all_valid);
   else
-    element_loop<Volumetric::kBlend>(g, x, y, p, begin, end, s, totals, node_force, all_valid);
+    element_loop<Volumetric::kBlend>(g, nodes, p, begin, end, s, totals, node_force, all_valid);
 
   if (!all_valid && totals.bad_element < 0) {  // rare: recompute J to name the first offender
     for (std::size_t e = begin; e < end; ++e) {
-      const double j = cm::det(cm::deformation_gradient(
-          x[node1[e]] - x[node0[e]], y[node1[e]] - y[node0[e]], x[node2[e]] - x[node0[e]],
-          y[node2[e]] - y[node0[e]], {dxx[e], dxy[e], dyx[e], dyy[e]}));
+      const NodeLanes edge1 = nodes[node1[e]].lanes - nodes[node0[e]].lanes,
+                      edge2 = nodes[node2[e]].lanes - nodes[node0[e]].lanes;
+      const double j = cm::det(cm::deformation_gradient(edge1[0], edge1[1], edge2[0], edge2[1],
+                                                        {dxx[e], dxy[e], dyx[e], dyy[e]}));
       if (!(j > 0.0)) {
         totals.bad_element = static_cast<int64_t>(e), totals.bad_j = j;
         break;

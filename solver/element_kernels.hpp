@@ -31,9 +31,12 @@ struct ElementState {
   void reset_to_reference();  // F = I, P_v = 0
 };
 
-// out[i] = {x, y, mean stress, bulk modulus} of node i, for i in [begin, end).
-void pack_nodes(const double* x, const double* y, const double* mean_stress,
-                const double* bulk_modulus, std::size_t begin, std::size_t end, PackedNode* out);
+// nodes[i]'s position lanes = (x[i], y[i]), for i in [begin, end).
+void pack_positions(const double* x, const double* y, std::size_t begin, std::size_t end,
+                    PackedNode* nodes);
+// nodes[i]'s state lanes = (mean_stress[i], bulk_modulus[i]), for i in [begin, end).
+void pack_nodal_state(const double* mean_stress, const double* bulk_modulus, std::size_t begin,
+                      std::size_t end, PackedNode* nodes);
 
 struct KernelParams {
   double kappa = 0, tait_n = 0, mu = 0, rho0 = 0;
@@ -48,10 +51,10 @@ struct KernelParams {
   double eta = 0;  // Kelvin-Voigt shear viscosity, Pa s (on whenever dt > 0)
   // 1: the artificial viscosity is a shear viscosity (the thesis); 0: a bulk viscosity 4/3 nu.
   double artificial_shear = 0.0;
-  // Average nodal pressure: per node its position and Tait mean stress and bulk modulus
-  // (nodal_pressure.hpp, packed by pack_nodes), mixed with the element's own as
-  // (1 - w) mean(nodal) + w element. nullptr = plain P1 (w = 1), positions from x and y.
-  const PackedNode* nodes = nullptr;
+  // Average nodal pressure: the nodes' Tait mean stress and bulk modulus (nodal_pressure.hpp,
+  // in the PackedNode rows) mixed with the element's own as (1 - w) mean(nodal) + w element.
+  // false = plain P1 (w = 1).
+  bool nodal_pressure = false;
   // Stabilisation of the nodal-pressure element (nodal_pressure.hpp): per-element stress s_e
   // added to the nodal mean, and its tangent modulus beta kappa - 2 s_e (continuum.hpp) added to
   // the bulk modulus of the stable step.
@@ -72,7 +75,7 @@ struct KernelTotals {
 // Evaluates elements [begin, end): updates their state and adds their nodal forces (acting on
 // the nodes, = -f_int) to node_force, element by element in index order — so the sums are
 // deterministic for a given element range.
-void compute_element_forces(const ElementGeometry& geometry, const double* x, const double* y,
+void compute_element_forces(const ElementGeometry& geometry, const PackedNode* nodes,
                             const KernelParams& params, std::size_t begin, std::size_t end,
                             ElementState& state, KernelTotals& totals, NodeForce* node_force);
 

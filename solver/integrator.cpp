@@ -5,10 +5,11 @@ namespace softshock {
 __attribute__((target_clones("avx512f", "avx2", "default"))) void predict_nodes(
     double dt, std::size_t begin, std::size_t end, double* __restrict x, double* __restrict y,
     double* __restrict vx, double* __restrict vy, const double* __restrict ax,
-    const double* __restrict ay) {
+    const double* __restrict ay, PackedNode* __restrict nodes) {
   for (std::size_t i = begin; i < end; ++i) {
     x[i] += dt * vx[i] + 0.5 * dt * dt * ax[i];
     y[i] += dt * vy[i] + 0.5 * dt * dt * ay[i];
+    nodes[i].lanes[0] = x[i], nodes[i].lanes[1] = y[i];
     vx[i] += 0.5 * dt * ax[i];
     vy[i] += 0.5 * dt * ay[i];
   }

@@ -9,10 +9,12 @@
 
 namespace softshock {
 
-// Predictor over nodes [begin, end): x += dt v + dt^2/2 a; v += dt/2 a.
+// Predictor over nodes [begin, end): x += dt v + dt^2/2 a; v += dt/2 a; the new x and y also to
+// the position lanes of nodes (the element passes' rows).
 void predict_nodes(double dt, std::size_t begin, std::size_t end, double* __restrict x,
                    double* __restrict y, double* __restrict vx, double* __restrict vy,
-                   const double* __restrict ax, const double* __restrict ay);
+                   const double* __restrict ax, const double* __restrict ay,
+                   PackedNode* __restrict nodes);
 
 // Corrector over nodes [begin, end): a = free (f + f_ext) / m; v += dt/2 a.
 void correct_nodes(double dt, std::size_t begin, std::size_t end, const NodeForce* __restrict force,

@@ -32,7 +32,7 @@ constexpr std::size_t kBlock = 256;
 }  // namespace
 
 __attribute__((target_clones("avx512f", "avx2", "default"))) void accumulate_nodal_areas(
-    const ElementGeometry& g, const double* x, const double* y, std::size_t begin, std::size_t end,
+    const ElementGeometry& g, const PackedNode* nodes, std::size_t begin, std::size_t end,
     double* area, double* j_element) {
   const int32_t *n0 = g.node0.data(), *n1 = g.node1.data(), *n2 = g.node2.data();
   const double* area0 = g.area0.data();
@@ -41,8 +41,9 @@ __attribute__((target_clones("avx512f", "avx2", "default"))) void accumulate_nod
     const std::size_t count = std::min(kBlock, end - block);
     for (std::size_t k = 0; k < count; ++k) {
       const std::size_t e = block + k;
-      const int32_t a = n0[e], b = n1[e], c = n2[e];
-      e1x[k] = x[b] - x[a], e1y[k] = y[b] - y[a], e2x[k] = x[c] - x[a], e2y[k] = y[c] - y[a];
+      const NodeLanes na = nodes[n0[e]].lanes;
+      const NodeLanes edge1 = nodes[n1[e]].lanes - na, edge2 = nodes[n2[e]].lanes - na;
+      e1x[k] = edge1[0], e1y[k] = edge1[1], e2x[k] = edge2[0], e2y[k] = edge2[1];
     }
 #pragma GCC ivdep
     for (std::size_t k = 0; k < count; ++k) {
@@ -122,7 +123,9 @@ NodalPressureState nodal_pressure_state(const ElementGeometry& g,
   const std::size_t nn = reference_area.size(), ne = g.size();
   std::vector<double> area(nn, 0.0), nodal_j(nn), sm(nn), k(nn), j_element(ne), s(ne, 0.0),
       q(nn, 0.0);
-  accumulate_nodal_areas(g, x, y, 0, ne, area.data(), j_element.data());
+  std::vector<PackedNode> nodes(nn);
+  pack_positions(x, y, 0, nn, nodes.data());
+  accumulate_nodal_areas(g, nodes.data(), 0, ne, area.data(), j_element.data());
   nodal_tait_state(kappa, n, reference_area.data(), area.data(), 0, nn, nodal_j.data(), sm.data(),
                    k.data());
   NodalPressureState out;

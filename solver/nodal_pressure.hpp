@@ -27,9 +27,9 @@ namespace softshock {
 // Reference nodal areas V_a = sum over the elements around a of A_e / 3.
 std::vector<double> reference_nodal_areas(const ElementGeometry& geometry, std::size_t nodes);
 
-// Pass 1 (elements [begin, end)): adds a_e / 3 (current area) to each of the element's nodes'
-// area and stores J_e = a_e / A_e.
-void accumulate_nodal_areas(const ElementGeometry& geometry, const double* x, const double* y,
+// Pass 1 (elements [begin, end)): adds a_e / 3 (current area, from the nodes' position lanes) to
+// each of the element's nodes' area and stores J_e = a_e / A_e.
+void accumulate_nodal_areas(const ElementGeometry& geometry, const PackedNode* nodes,
                             std::size_t begin, std::size_t end, double* area, double* j_element);
 
 // Pass 2 (nodes [begin, end)): J_a = area / reference_area, the Tait mean stress sigma_m(J_a)

@@ -9,7 +9,9 @@ namespace softshock {
 typedef double NodeLanes __attribute__((vector_size(32)));
 typedef double ForceLanes __attribute__((vector_size(16)));
 
-// What the nodal-pressure element loop reads of a node (pack_nodes, element_kernels.hpp).
+// What the element passes read of a node: its current position (written by the predictor, or
+// pack_positions) and, for the average nodal pressure element, its Tait state (written by the
+// last nodal pass, pack_nodal_state; zero otherwise).
 struct alignas(32) PackedNode {
   NodeLanes lanes;  // x, y (m), mean stress (Pa), bulk modulus (Pa)
 };

@@ -159,6 +159,7 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
   std::vector<double> x = mesh.x, y = mesh.y;
   std::vector<double> vx(nn, 0.0), vy(nn, 0.0), ax(nn, 0.0), ay(nn, 0.0);
   std::vector<NodeForce> force(nn);
+  std::vector<PackedNode> nodes(nn);  // the element passes' rows: position (+ nodal state)
   if (!problem.initial_vx.empty()) vx = problem.initial_vx;
   if (!problem.initial_vy.empty()) vy = problem.initial_vy;
   std::vector<uint8_t> free_x(nn, 1), free_y(nn, 1);
@@ -223,7 +224,7 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
 
   // Average nodal pressure: nodal areas, each node's Tait state, then the stabilisation of the
   // element-level volume modes, before the element loop (nodal_pressure.hpp); the last nodal
-  // pass packs each node's position and state into one row for the loop's gather.
+  // pass writes each node's state into its row beside the position the predictor wrote.
   const bool nodal = problem.element.formulation == ElementFormulation::kAverageNodalPressure;
   const double beta_kappa = problem.element.stabilization * params.kappa;
   const std::size_t nodal_n = nodal ? nn : 0, nodal_e = nodal ? ne : 0;
@@ -231,13 +232,12 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
       nodal ? reference_nodal_areas(geometry, nn) : std::vector<double>{};
   std::vector<double> nodal_area(nodal_n), nodal_j(nodal_n), nodal_sm(nodal_n), nodal_k(nodal_n),
       nodal_q(nodal_n), j_element(nodal_e), s_element(nodal_e, 0.0);
-  std::vector<PackedNode> packed_nodes(nodal_n);
   std::vector<std::vector<double>> thread_area(nodal && threads > 1 ? threads : 0),
       thread_q(nodal && threads > 1 ? threads : 0);
   for (auto* v : {&thread_area, &thread_q})
     for (auto& a : *v) a.resize(nn);
   if (nodal) {
-    params.nodes = packed_nodes.data();
+    params.nodal_pressure = true;
     params.element_stress_shift = s_element.data();
     params.element_weight = problem.element.element_weight;
     params.stabilization_beta_kappa = beta_kappa;
@@ -259,7 +259,8 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
     };
     auto predict = [&](int tid) {  // x+ = x + dt v + dt^2/2 a; v* = v + dt/2 a
       const auto [n0, n1] = node_range(tid);
-      predict_nodes(dt, n0, n1, x.data(), y.data(), vx.data(), vy.data(), ax.data(), ay.data());
+      predict_nodes(dt, n0, n1, x.data(), y.data(), vx.data(), vy.data(), ax.data(), ay.data(),
+                    nodes.data());
     };
     auto element_range = [&](int tid) {
       return std::pair<std::size_t, std::size_t>{ne * tid / threads, ne * (tid + 1) / threads};
@@ -277,16 +278,14 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
       const auto [e0, e1] = element_range(tid);
       double* out = threads > 1 ? thread_area[tid].data() : nodal_area.data();
       std::fill(out, out + nn, 0.0);
-      accumulate_nodal_areas(geometry, x.data(), y.data(), e0, e1, out, j_element.data());
+      accumulate_nodal_areas(geometry, nodes.data(), e0, e1, out, j_element.data());
     };
     auto nodal_state = [&](int tid) {  // pass 2: J, mean stress, bulk modulus of the nodes
       const auto [n0, n1] = node_range(tid);
       if (threads > 1) sum_threads(thread_area, n0, n1, nodal_area.data());
       nodal_tait_state(params.kappa, params.tait_n, nodal_area0.data(), nodal_area.data(), n0, n1,
                        nodal_j.data(), nodal_sm.data(), nodal_k.data());
-      if (beta_kappa <= 0)
-        pack_nodes(x.data(), y.data(), nodal_sm.data(), nodal_k.data(), n0, n1,
-                   packed_nodes.data());
+      if (beta_kappa <= 0) pack_nodal_state(nodal_sm.data(), nodal_k.data(), n0, n1, nodes.data());
     };
     auto stabilization = [&](int tid) {  // pass 3: element discrepancies, their nodal shares
       const auto [e0, e1] = element_range(tid);
@@ -299,15 +298,14 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
       const auto [n0, n1] = node_range(tid);
       if (threads > 1) sum_threads(thread_q, n0, n1, nodal_q.data());
       subtract_stabilization(nodal_area0.data(), nodal_q.data(), n0, n1, nodal_sm.data());
-      pack_nodes(x.data(), y.data(), nodal_sm.data(), nodal_k.data(), n0, n1, packed_nodes.data());
+      pack_nodal_state(nodal_sm.data(), nodal_k.data(), n0, n1, nodes.data());
     };
     auto work = [&](int tid) {
       const std::size_t e0 = ne * tid / threads, e1 = ne * (tid + 1) / threads;
       NodeForce* out = threads > 1 ? thread_force[tid].data() : force.data();
       std::fill(out, out + nn, NodeForce{});
       partial[tid] = KernelTotals{};
-      compute_element_forces(geometry, x.data(), y.data(), params, e0, e1, elements, partial[tid],
-                             out);
+      compute_element_forces(geometry, nodes.data(), params, e0, e1, elements, partial[tid], out);
     };
     // The kernel's CPU time: the element loop and the nodal-pressure passes before it.
     auto timed = [&](int tid, const auto& pass) {

@@ -51,15 +51,27 @@ struct KernelFixture {
   }
 };
 
-// compute_element_forces over [begin, end), its nodal forces added to fx and fy.
+// compute_element_forces over [begin, end) on the packed nodes, its nodal forces added to fx
+// and fy.
+void add_element_forces(const ElementGeometry& g, const std::vector<PackedNode>& nodes,
+                        const KernelParams& p, std::size_t begin, std::size_t end, ElementState& s,
+                        KernelTotals& totals, std::vector<double>& fx, std::vector<double>& fy) {
+  std::vector<NodeForce> force(fx.size());
+  compute_element_forces(g, nodes.data(), p, begin, end, s, totals, force.data());
+  for (std::size_t i = 0; i < fx.size(); ++i)
+    fx[i] += force[i].lanes[0], fy[i] += force[i].lanes[1];
+}
+std::vector<PackedNode> packed_positions(const std::vector<double>& x,
+                                         const std::vector<double>& y) {
+  std::vector<PackedNode> nodes(x.size());
+  pack_positions(x.data(), y.data(), 0, x.size(), nodes.data());
+  return nodes;
+}
 void add_element_forces(const ElementGeometry& g, const std::vector<double>& x,
                         const std::vector<double>& y, const KernelParams& p, std::size_t begin,
                         std::size_t end, ElementState& s, KernelTotals& totals,
                         std::vector<double>& fx, std::vector<double>& fy) {
-  std::vector<NodeForce> force(fx.size());
-  compute_element_forces(g, x.data(), y.data(), p, begin, end, s, totals, force.data());
-  for (std::size_t i = 0; i < fx.size(); ++i)
-    fx[i] += force[i].lanes[0], fy[i] += force[i].lanes[1];
+  add_element_forces(g, packed_positions(x, y), p, begin, end, s, totals, fx, fy);
 }
 
 double frobenius(const continuum::Mat2& m) {
@@ -184,21 +196,21 @@ NodalRun nodal_forces(KernelFixture& fx, const std::vector<double>& x, const std
   const std::size_t nn = fx.mesh.node_count(), ne = fx.g.size();
   const std::vector<double> v0 = reference_nodal_areas(fx.g, nn);
   std::vector<double> area(nn, 0.0), nj(nn), sm(nn), k(nn), q(nn, 0.0), je(ne), se(ne, 0.0);
-  accumulate_nodal_areas(fx.g, x.data(), y.data(), 0, ne, area.data(), je.data());
+  std::vector<PackedNode> nodes = packed_positions(x, y);
+  accumulate_nodal_areas(fx.g, nodes.data(), 0, ne, area.data(), je.data());
   nodal_tait_state(fx.p.kappa, fx.p.tait_n, v0.data(), area.data(), 0, nn, nj.data(), sm.data(),
                    k.data());
   accumulate_stabilization(fx.g, beta * fx.p.kappa, nj.data(), je.data(), 0, ne, se.data(),
                            q.data());
   subtract_stabilization(v0.data(), q.data(), 0, nn, sm.data());
+  pack_nodal_state(sm.data(), k.data(), 0, nn, nodes.data());
   KernelParams p = fx.p;
-  std::vector<PackedNode> nodes(nn);
-  pack_nodes(x.data(), y.data(), sm.data(), k.data(), 0, nn, nodes.data());
-  p.nodes = nodes.data();
+  p.nodal_pressure = true;
   p.element_stress_shift = se.data(), p.stabilization_beta_kappa = beta * fx.p.kappa;
   p.element_weight = 0.0;
   NodalRun r;
   r.fx.assign(nn, 0.0), r.fy.assign(nn, 0.0);
-  add_element_forces(fx.g, x, y, p, 0, ne, fx.s, r.totals, r.fx, r.fy);
+  add_element_forces(fx.g, nodes, p, 0, ne, fx.s, r.totals, r.fx, r.fy);
   return r;
 }
 
