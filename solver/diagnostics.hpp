@@ -44,21 +44,21 @@ class Diagnostics {
   const std::vector<int32_t>& rim_nodes() const { return rim_nodes_; }
 
   // Appends one sample at time t. Dissipation and external work are accumulated by the
-  // integrator and passed in.
-  // dt_element is the element that set dt (KernelTotals::min_step_element; < 0 = unknown).
+  // integrator and passed in. totals: of the evaluation at these positions, with
+  // KernelParams::sample set (the elements' stored energy and largest aspect ratio, the element
+  // that set dt).
   void sample(const NodalView& nodes, const ElementState& elements, const KernelView& kernel,
-              double t, double dt, int64_t dt_element, double dissipated, double external_work,
-              History& history) const;
+              const KernelTotals& totals, double t, double dt, double dissipated,
+              double external_work, History& history) const;
 
   FieldFrame frame(const NodalView& nodes, const ElementState& elements, const KernelView& kernel,
                    double t) const;
 
   // longest edge^2 / (2 area) of every element in its current shape.
   std::vector<double> aspect_ratios(const NodalView& nodes) const;
-  // The stored energy of the whole body (J/m; volumetric, stabilisation and deviatoric), with the
-  // largest aspect ratio of the elements from the same pass (if max_aspect_ratio is not null).
-  double stored_energy(const NodalView& nodes, const KernelView& kernel,
-                       double* max_aspect_ratio = nullptr) const;
+  // The stored energy of the whole body (J/m): the nodes' volumetric and the stabilisation
+  // energy (average nodal pressure) plus the elements' (KernelTotals::element_energy).
+  double stored_energy(const KernelView& kernel, const KernelTotals& totals) const;
   // The volumetric mean stress the kernel applied to element e (average nodal pressure only).
   double volumetric_mean_stress(const KernelView& kernel, std::size_t e) const;
   // Cauchy stress of element e; its mean stress under the element formulation (kernel: the

@@ -49,9 +49,9 @@ namespace {
 // (average nodal pressure, element_weight 0: the default, no per-element J^-n at all), or a blend.
 enum class Volumetric { kElement, kNodal, kBlend };
 
-// The element loop, once per volumetric variant; inlined into the target_clones entry point
-// below so each ISA gets its own vectorised copy.
-template <Volumetric kVolumetric>
+// The element loop, once per volumetric variant and with or without the sample's sums; inlined
+// into the target_clones entry point below so each ISA gets its own vectorised copy.
+template <Volumetric kVolumetric, bool kSample>
 inline __attribute__((always_inline)) void element_loop(const ElementGeometry& g,
                                                         const PackedNode* nodes,
                                                         const KernelParams& p, std::size_t begin,
@@ -95,9 +95,11 @@ inline __attribute__((always_inline)) void element_loop(const ElementGeometry& g
   alignas(64) double nodal_sm_sum[kBlock], nodal_k_max[kBlock];
   // Per-element results reduced after the (reduction-free, hence vectorisable) loop.
   alignas(64) double step_sq_out[kBlock], dissipation_out[kBlock], j_out[kBlock];
+  alignas(64) double energy_out[kBlock], aspect_out[kBlock];  // kSample only
   // Corner forces of the block, scattered to the nodes after the vectorised loop.
   alignas(64) double f1x_out[kBlock], f1y_out[kBlock], f2x_out[kBlock], f2y_out[kBlock];
-  double min_step_sq = totals.min_step_sq, dissipation = 0.0;
+  double min_step_sq = totals.min_step_sq, dissipation = 0.0, element_energy = 0.0;
+  double max_aspect = totals.max_aspect_ratio;
   int64_t min_step_element = totals.min_step_element;
   for (std::size_t block = begin; block < end; block += kBlock) {
     const std::size_t count = std::min(kBlock, end - block);
@@ -125,21 +127,20 @@ inline __attribute__((always_inline)) void element_loop(const ElementGeometry& g
       // J^-2/3 (below): with nodal pressures the element needs no J^-n, so one cube root
       // (libmvec) of 1/J^2 in place of a logarithm and an exponential; otherwise one logarithm
       // feeds J^-n and J^-2/3.
-      double log_j = 0.0;
-      if constexpr (kVolumetric != Volumetric::kNodal) log_j = ::log(j);
+      double log_j = 0.0, j_minus_n = 0.0;
+      if constexpr (kVolumetric != Volumetric::kNodal)
+        log_j = ::log(j), j_minus_n = ::exp(-n * log_j);
       double mean_stress, bulk_modulus;
       if constexpr (kVolumetric == Volumetric::kNodal) {  // w_element = 0
         mean_stress = nodal_sm_sum[k] * cm::kThird + shift[e];
         bulk_modulus = nodal_k_max[k] + cm::stabilization_bulk_modulus(beta_kappa, shift[e]);
       } else if constexpr (kVolumetric == Volumetric::kBlend) {
-        const double j_minus_n = ::exp(-n * log_j);
         mean_stress = w_nodal * (nodal_sm_sum[k] * cm::kThird + shift[e]) +
                       w_element * cm::tait_mean_stress(kappa, n, j_minus_n);
         bulk_modulus =
             w_nodal * (nodal_k_max[k] + cm::stabilization_bulk_modulus(beta_kappa, shift[e])) +
             w_element * cm::tait_bulk_modulus(kappa, j_minus_n);
       } else {
-        const double j_minus_n = ::exp(-n * log_j);
         mean_stress = cm::tait_mean_stress(kappa, n, j_minus_n);
         bulk_modulus = cm::tait_bulk_modulus(kappa, j_minus_n);
       }
@@ -167,6 +168,13 @@ inline __attribute__((always_inline)) void element_loop(const ElementGeometry& g
       else
         j_minus_23 = ::exp(-2.0 / 3.0 * log_j);
       const cm::Mat2 elastic = cm::elastic_piola_inv_j(f, cof, inv_j, mean_stress, mu, j_minus_23);
+      if constexpr (kSample) {
+        double w = cm::neo_hookean_energy(mu, cm::first_invariant(f), j_minus_23);
+        if constexpr (kVolumetric != Volumetric::kNodal)
+          w += w_element * cm::tait_energy(kappa, n, j, j_minus_n);
+        energy_out[k] = area0[e] * w;
+        aspect_out[k] = cm::aspect_ratio(e1x, e1y, e2x, e2y);
+      }
 
       const double twice_area = e1x * e2y - e1y * e2x;
       const double h_sq = twice_area * twice_area * inv_l_sq;  // smallest altitude squared
@@ -216,6 +224,10 @@ inline __attribute__((always_inline)) void element_loop(const ElementGeometry& g
         min_step_sq = step_sq_out[k], min_step_element = static_cast<int64_t>(e);
       dissipation += dissipation_out[k];
       all_valid &= j_out[k] > 0.0;  // false for J <= 0 and for NaN
+      if constexpr (kSample) {
+        element_energy += energy_out[k];
+        max_aspect = aspect_out[k] > max_aspect ? aspect_out[k] : max_aspect;
+      }
       const ForceLanes f1{f1x_out[k], f1y_out[k]}, f2{f2x_out[k], f2y_out[k]};
       node_force[node0[e]].lanes -= f1 + f2;
       node_force[node1[e]].lanes += f1;
@@ -225,6 +237,21 @@ inline __attribute__((always_inline)) void element_loop(const ElementGeometry& g
   totals.min_step_sq = min_step_sq;
   totals.min_step_element = min_step_element;
   totals.dissipation += dissipation;
+  totals.element_energy += element_energy;
+  totals.max_aspect_ratio = max_aspect;
+}
+
+template <Volumetric kVolumetric>
+inline __attribute__((always_inline)) void element_loop(const ElementGeometry& g,
+                                                        const PackedNode* nodes,
+                                                        const KernelParams& p, std::size_t begin,
+                                                        std::size_t end, ElementState& s,
+                                                        KernelTotals& totals, NodeForce* node_force,
+                                                        bool& all_valid) {
+  if (p.sample)
+    element_loop<kVolumetric, true>(g, nodes, p, begin, end, s, totals, node_force, all_valid);
+  else
+    element_loop<kVolumetric, false>(g, nodes, p, begin, end, s, totals, node_force, all_valid);
 }
 
 }  // namespace

@@ -62,6 +62,9 @@ struct KernelParams {
   double stabilization_beta_kappa = 0.0;
   double element_weight = 1.0;
   double dt = 0;  // the step that led from the stored state to the current positions; 0 = none
+  // A history sample follows this evaluation: also sum the elements' stored energy and find
+  // their largest aspect ratio (KernelTotals), from the F and J^-2/3 the loop computes anyway.
+  bool sample = false;
 };
 
 struct KernelTotals {
@@ -70,6 +73,11 @@ struct KernelTotals {
   double dissipation = 0;         // trapezoidal P_v : dF increment over this step (J/m)
   int64_t bad_element = -1;       // first element with J <= 0 or non-finite J
   double bad_j = 0;
+  // KernelParams::sample only (else 0): sum_e A_e (W_dev(F_e) + w W_vol(J_e)) in element order,
+  // w the element's own weight (0 for the average nodal pressure element, whose W_vol is the
+  // nodes'), J/m; and the largest longest-edge^2 / (2 area).
+  double element_energy = 0;
+  double max_aspect_ratio = 0;
 };
 
 // Evaluates elements [begin, end): updates their state and adds their nodal forces (acting on

@@ -252,8 +252,8 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
   std::vector<double> kernel_seconds(threads, 0.0);  // per thread: RunResult::kernel_time_s
   std::vector<std::vector<NodeForce>> thread_force(threads > 1 ? threads : 0);
   for (auto& f : thread_force) f.resize(nn);
-  auto evaluate = [&](double t, double dt) {
-    params.dt = dt;
+  auto evaluate = [&](double t, double dt, bool sample) {
+    params.dt = dt, params.sample = sample;
     auto node_range = [&](int tid) {
       return std::pair<std::size_t, std::size_t>{nn * tid / threads, nn * (tid + 1) / threads};
     };
@@ -367,6 +367,8 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
       if (k.min_step_sq < total.min_step_sq)
         total.min_step_sq = k.min_step_sq, total.min_step_element = k.min_step_element;
       total.dissipation += k.dissipation;
+      total.element_energy += k.element_energy;
+      total.max_aspect_ratio = std::max(total.max_aspect_ratio, k.max_aspect_ratio);
       if (total.bad_element < 0 && k.bad_element >= 0)
         total.bad_element = k.bad_element, total.bad_j = k.bad_j;
     }
@@ -380,7 +382,7 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
             : KernelView{};
   double t = 0.0, dissipated = 0.0, external_work = 0.0;
   int64_t steps = 0;
-  KernelTotals totals = evaluate(0.0, 0.0);
+  KernelTotals totals = evaluate(0.0, 0.0, true);
   std::fill(kernel_seconds.begin(), kernel_seconds.end(), 0.0);  // per step: count steps only
   if (totals.bad_element >= 0) {
     result.status = RunStatus::kFailed;
@@ -394,8 +396,8 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
   double interval_min_dt = dt_stable;
   int64_t interval_min_element = totals.min_step_element;
   auto sample_history = [&] {
-    diagnostics.sample(view, elements, kernel_view, t, dt_stable, totals.min_step_element,
-                       dissipated, external_work, result.history);
+    diagnostics.sample(view, elements, kernel_view, totals, t, dt_stable, dissipated, external_work,
+                       result.history);
     result.history.min_dt.push_back(interval_min_dt);
     result.history.min_dt_element.push_back(static_cast<double>(interval_min_element));
     interval_min_dt = std::numeric_limits<double>::infinity(), interval_min_element = -1;
@@ -431,7 +433,7 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
       x_old[k] = x[i], y_old[k] = y[i], fext_old_x[k] = fext_x[i], fext_old_y[k] = fext_y[i];
     }
     t = (stop - t <= dt_stable + tiny) ? stop : t + dt;
-    totals = evaluate(t, dt);
+    totals = evaluate(t, dt, t >= schedule.next_history_time() - tiny);
     ++steps;
     if (totals.bad_element >= 0) {
       result.status = RunStatus::kFailed;

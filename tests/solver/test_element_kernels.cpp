@@ -171,6 +171,55 @@ TEST(ElementKernel, RigidRotationProducesNoElasticOrViscousStress) {
   EXPECT_LT(bound, 1e-2 * 2e9 * 0.01 * edge);
 }
 
+// A history sample's element sums come from the kernel (KernelParams::sample): the stored energy
+// sum_e A_e (W_dev + w W_vol(J_e)) and the largest aspect ratio of the current shapes, equal to
+// the sums computed element by element here (to round-off: the kernel's J^-2/3 and J^-n take
+// other paths than std::pow), for the plain element (w = 1) and the nodal-pressure one (w = 0,
+// its W_vol is the nodes'); nothing without the flag.
+TEST(ElementKernel, SampleSumsTheElementsStoredEnergyAndLargestAspectRatio) {
+  for (const bool nodal : {false, true}) {
+    KernelFixture fx;
+    fx.p.mu = 3e8;  // a deviatoric energy comparable to the volumetric one
+    std::vector<double> x, y;
+    fx.deform({0.97, 0.05, -0.02, 1.01}, x, y);
+    for (std::size_t i = 0; i < x.size(); ++i)  // non-uniform shapes: aspect ratios differ
+      x[i] += 4e-8 * std::sin(3.1 * i), y[i] += 4e-8 * std::cos(1.7 * i);
+    const std::size_t nn = x.size(), ne = fx.g.size();
+    std::vector<PackedNode> nodes = packed_positions(x, y);
+    std::vector<double> zero(nn, 0.0), shift(ne, 0.0);
+    if (nodal) {
+      pack_nodal_state(zero.data(), zero.data(), 0, nn, nodes.data());
+      fx.p.nodal_pressure = true, fx.p.element_weight = 0.0;
+      fx.p.element_stress_shift = shift.data();
+    }
+    double energy = 0.0, max_aspect = 0.0;
+    for (std::size_t e = 0; e < ne; ++e) {
+      const int32_t a = fx.g.node0[e], b = fx.g.node1[e], c = fx.g.node2[e];
+      const double e1x = x[b] - x[a], e1y = y[b] - y[a], e2x = x[c] - x[a], e2y = y[c] - y[a];
+      const continuum::Mat2 f = continuum::deformation_gradient(
+          e1x, e1y, e2x, e2y,
+          {fx.g.dm_inv_xx[e], fx.g.dm_inv_xy[e], fx.g.dm_inv_yx[e], fx.g.dm_inv_yy[e]});
+      const double j = continuum::det(f);
+      double w = continuum::neo_hookean_energy(3e8, continuum::first_invariant(f),
+                                               std::pow(j, -2.0 / 3.0));
+      if (!nodal) w += continuum::tait_energy(2e9, 7.15, j, std::pow(j, -7.15));
+      energy += fx.g.area0[e] * w;
+      max_aspect = std::max(max_aspect, continuum::aspect_ratio(e1x, e1y, e2x, e2y));
+    }
+    std::vector<double> nfx(nn), nfy(nn);
+    KernelTotals plain;
+    add_element_forces(fx.g, nodes, fx.p, 0, ne, fx.s, plain, nfx, nfy);
+    EXPECT_EQ(plain.element_energy, 0.0);
+    EXPECT_EQ(plain.max_aspect_ratio, 0.0);
+    fx.p.sample = true;
+    KernelTotals sampled;
+    add_element_forces(fx.g, nodes, fx.p, 0, ne, fx.s, sampled, nfx, nfy);
+    EXPECT_GT(max_aspect, 1.2) << nodal;
+    EXPECT_NEAR(sampled.element_energy, energy, 1e-12 * std::fabs(energy)) << nodal;
+    EXPECT_NEAR(sampled.max_aspect_ratio, max_aspect, 1e-14 * max_aspect) << nodal;
+  }
+}
+
 TEST(ElementKernel, InvertedElementIsReported) {
   KernelFixture fx;
   std::vector<double> x = fx.mesh.x, y = fx.mesh.y;
