@@ -53,8 +53,10 @@ struct RunSummary {
   double min_dt_s = 0, max_dt_s = 0;
   std::string status;  // "completed", "cancelled", "failed"
   std::string error;
-  // Where the time went (docs/performance.md). kernel_time_s: the element loop alone, CPU time
-  // measured in the run (robust to other processes on the cores; wall_time_s is not).
+  // Where the time went (docs/performance.md). kernel_time_s: the element loop and the nodal
+  // passes before it (on the evaluations a history sample follows, the loop also sums the
+  // elements' stored energy and largest aspect ratio), CPU time measured in the run (robust to
+  // other processes on the cores; wall_time_s is not).
   // meshing_time_s and mesh_cache ("hit", "miss", "replaced", "not-used") describe the mesh before
   // the run; summarize() cannot know them, the caller sets them.
   double kernel_time_s = 0;

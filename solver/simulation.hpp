@@ -87,8 +87,8 @@ struct RunResult {
   History history;
   int64_t steps = 0;
   double wall_time_s = 0;
-  // The element loop alone: CPU time in compute_element_forces over the steps (the busiest
-  // thread's), for the summary's kernel grind time beside the whole run's wall time.
+  // The kernel: CPU time in the nodal passes and compute_element_forces over the steps (the
+  // busiest thread's), for the summary's kernel grind time beside the whole run's wall time.
   double kernel_time_s = 0;
   double min_dt_s = 0, max_dt_s = 0;
   std::size_t frames_written = 0;
