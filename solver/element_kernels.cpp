@@ -84,12 +84,11 @@ inline __attribute__((always_inline)) void element_loop(const ElementGeometry& g
   double *fxx = s.f_xx.data(), *fxy = s.f_xy.data(), *fyx = s.f_yx.data(), *fyy = s.f_yy.data();
   float *pxx = s.pv_xx.data(), *pxy = s.pv_xy.data(), *pyx = s.pv_yx.data(), *pyy = s.pv_yy.data();
 
-  // Edge vectors (and, with nodal pressures, the nodes' Tait state: one PackedNode row per
-  // corner) are gathered per block into small contiguous buffers (indexed loads do not vectorise
-  // well); the element loop then
-  // streams plain arrays. The loop body is branch-free and reduction-free (viscosity is
-  // selected, not skipped; totals are reduced afterwards), so it vectorises, exp and log
-  // included.
+  // Edge vectors (and, with nodal pressures, the nodes' Tait state), one PackedNode row per
+  // corner, are gathered per block into small contiguous buffers (indexed loads do not vectorise
+  // well); the element loop then streams plain arrays. The loop body is branch-free and
+  // reduction-free (viscosity is selected, not skipped; totals are reduced afterwards), so it
+  // vectorises, exp and log included.
   constexpr std::size_t kBlock = 256;
   alignas(64) double edge1x[kBlock], edge1y[kBlock], edge2x[kBlock], edge2y[kBlock];
   alignas(64) double nodal_sm_sum[kBlock], nodal_k_max[kBlock];
