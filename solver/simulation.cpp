@@ -265,19 +265,20 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
     auto element_range = [&](int tid) {
       return std::pair<std::size_t, std::size_t>{ne * tid / threads, ne * (tid + 1) / threads};
     };
-    // Per-thread partial nodal sums, added in thread order by each thread's node range.
+    // Per-thread partial nodal sums, added in thread order by each thread's node range, which
+    // it also clears for the next step's sums (while the lines are in cache: no separate pass).
     auto sum_threads = [&](std::vector<std::vector<double>>& parts, std::size_t n0, std::size_t n1,
                            double* out) {
       for (std::size_t i = n0; i < n1; ++i) {
         double sum = 0.0;
-        for (int k = 0; k < threads; ++k) sum += parts[k][i];
+        for (int k = 0; k < threads; ++k) sum += parts[k][i], parts[k][i] = 0.0;
         out[i] = sum;
       }
     };
     auto nodal_areas = [&](int tid) {  // pass 1: this thread's elements' shares of the areas
       const auto [e0, e1] = element_range(tid);
       double* out = threads > 1 ? thread_area[tid].data() : nodal_area.data();
-      std::fill(out, out + nn, 0.0);
+      if (threads == 1) std::fill(out, out + nn, 0.0);  // else cleared by sum_threads
       accumulate_nodal_areas(geometry, nodes.data(), e0, e1, out, j_element.data());
     };
     auto nodal_state = [&](int tid) {  // pass 2: J, mean stress, bulk modulus of the nodes
@@ -290,7 +291,7 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
     auto stabilization = [&](int tid) {  // pass 3: element discrepancies, their nodal shares
       const auto [e0, e1] = element_range(tid);
       double* out = threads > 1 ? thread_q[tid].data() : nodal_q.data();
-      std::fill(out, out + nn, 0.0);
+      if (threads == 1) std::fill(out, out + nn, 0.0);  // else cleared by sum_threads
       accumulate_stabilization(geometry, beta_kappa, nodal_j.data(), j_element.data(), e0, e1,
                                s_element.data(), out);
     };
@@ -303,7 +304,7 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
     auto work = [&](int tid) {
       const std::size_t e0 = ne * tid / threads, e1 = ne * (tid + 1) / threads;
       NodeForce* out = threads > 1 ? thread_force[tid].data() : force.data();
-      std::fill(out, out + nn, NodeForce{});
+      if (threads == 1) std::fill(out, out + nn, NodeForce{});  // else cleared by correct
       partial[tid] = KernelTotals{};
       compute_element_forces(geometry, nodes.data(), params, e0, e1, elements, partial[tid], out);
     };
@@ -318,7 +319,8 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
       if (threads > 1) {
         for (std::size_t i = n0; i < n1; ++i) {
           ForceLanes sum{0.0, 0.0};
-          for (int k = 0; k < threads; ++k) sum += thread_force[k][i].lanes;
+          for (int k = 0; k < threads; ++k)
+            sum += thread_force[k][i].lanes, thread_force[k][i].lanes = ForceLanes{0.0, 0.0};
           force[i].lanes = sum;
         }
       }
