@@ -240,17 +240,13 @@ inline __attribute__((always_inline)) void element_loop(const ElementGeometry& g
   totals.max_aspect_ratio = max_aspect;
 }
 
-template <Volumetric kVolumetric>
-inline __attribute__((always_inline)) void element_loop(const ElementGeometry& g,
-                                                        const PackedNode* nodes,
-                                                        const KernelParams& p, std::size_t begin,
-                                                        std::size_t end, ElementState& s,
-                                                        KernelTotals& totals, NodeForce* node_force,
-                                                        bool& all_valid) {
-  if (p.sample)
-    element_loop<kVolumetric, true>(g, nodes, p, begin, end, s, totals, node_force, all_valid);
+// The loop with or without the sample's sums.
+template <Volumetric kVolumetric, typename... Args>
+inline __attribute__((always_inline)) void element_loop_sampled(bool sample, Args&... args) {
+  if (sample)
+    element_loop<kVolumetric, true>(args...);
   else
-    element_loop<kVolumetric, false>(g, nodes, p, begin, end, s, totals, node_force, all_valid);
+    element_loop<kVolumetric, false>(args...);
 }
 
 }  // namespace
@@ -265,11 +261,14 @@ __attribute__((target_clones("avx512f", "avx2", "default"))) void compute_elemen
                *dyy = g.dm_inv_yy.data();
   bool all_valid = true;
   if (!p.nodal_pressure)
-    element_loop<Volumetric::kElement>(g, nodes, p, begin, end, s, totals, node_force, all_valid);
+    element_loop_sampled<Volumetric::kElement>(p.sample, g, nodes, p, begin, end, s, totals,
+                                               node_force, all_valid);
   else if (p.element_weight == 0.0)
-    element_loop<Volumetric::kNodal>(g, nodes, p, begin, end, s, totals, node_force, all_valid);
+    element_loop_sampled<Volumetric::kNodal>(p.sample, g, nodes, p, begin, end, s, totals,
+                                             node_force, all_valid);
   else
-    element_loop<Volumetric::kBlend>(g, nodes, p, begin, end, s, totals, node_force, all_valid);
+    element_loop_sampled<Volumetric::kBlend>(p.sample, g, nodes, p, begin, end, s, totals,
+                                             node_force, all_valid);
 
   if (!all_valid && totals.bad_element < 0) {  // rare: recompute J to name the first offender
     for (std::size_t e = begin; e < end; ++e) {

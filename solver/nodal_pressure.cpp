@@ -28,6 +28,18 @@ std::vector<double> reference_nodal_areas(const ElementGeometry& g, std::size_t 
 // scalar code did, bit for bit.
 namespace {
 constexpr std::size_t kBlock = 256;
+
+// sum[k] = the three corner values of element block + k, for k < count (a block's gather).
+inline __attribute__((always_inline)) void gather_corner_sums(const ElementGeometry& g,
+                                                              const double* nodal,
+                                                              std::size_t block, std::size_t count,
+                                                              double* sum) {
+  const int32_t *n0 = g.node0.data(), *n1 = g.node1.data(), *n2 = g.node2.data();
+  for (std::size_t k = 0; k < count; ++k) {
+    const std::size_t e = block + k;
+    sum[k] = nodal[n0[e]] + nodal[n1[e]] + nodal[n2[e]];
+  }
+}
 }  // namespace
 
 __attribute__((target_clones("avx512f", "avx2", "default"))) void accumulate_nodal_areas(
@@ -78,10 +90,7 @@ __attribute__((target_clones("avx512f", "avx2", "default"))) void accumulate_sta
   alignas(64) double j_sum[kBlock], share[kBlock];
   for (std::size_t block = begin; block < end; block += kBlock) {
     const std::size_t count = std::min(kBlock, end - block);
-    for (std::size_t k = 0; k < count; ++k) {
-      const std::size_t e = block + k;
-      j_sum[k] = nodal_j[n0[e]] + nodal_j[n1[e]] + nodal_j[n2[e]];
-    }
+    gather_corner_sums(g, nodal_j, block, count, j_sum);
 #pragma GCC ivdep
     for (std::size_t k = 0; k < count; ++k) {
       const std::size_t e = block + k;
@@ -107,7 +116,6 @@ namespace {
 __attribute__((target_clones("avx512f", "avx2", "default"))) double add_nodal_volumetric_energy(
     const double* reference_area, const double* nodal_j, std::size_t nodes, double kappa, double n,
     double w, double energy) {
-  constexpr std::size_t kBlock = 256;
   alignas(64) double out[kBlock];
   for (std::size_t block = 0; block < nodes; block += kBlock) {
     const std::size_t count = std::min(kBlock, nodes - block);
@@ -127,15 +135,11 @@ __attribute__((target_clones("avx512f", "avx2", "default"))) double add_nodal_vo
 __attribute__((target_clones("avx512f", "avx2", "default"))) double add_stabilization_energy(
     const ElementGeometry& g, const double* nodal_j, const double* j_element, double beta_kappa,
     double w, double energy) {
-  const int32_t *n0 = g.node0.data(), *n1 = g.node1.data(), *n2 = g.node2.data();
   const double* area0 = g.area0.data();
   alignas(64) double j_sum[kBlock], out[kBlock];
   for (std::size_t block = 0; block < g.size(); block += kBlock) {
     const std::size_t count = std::min(kBlock, g.size() - block);
-    for (std::size_t k = 0; k < count; ++k) {
-      const std::size_t e = block + k;
-      j_sum[k] = nodal_j[n0[e]] + nodal_j[n1[e]] + nodal_j[n2[e]];
-    }
+    gather_corner_sums(g, nodal_j, block, count, j_sum);
 #pragma GCC ivdep
     for (std::size_t k = 0; k < count; ++k) {
       const std::size_t e = block + k;
