@@ -397,7 +397,24 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
   // The smallest stable step since the last sample, and its element.
   double interval_min_dt = dt_stable;
   int64_t interval_min_element = totals.min_step_element;
+  // Whether the last evaluation summed the elements' energy and aspect ratio (a sample was due
+  // after it). A sample that was not -- the last state of a run stopped by max_steps or a
+  // cancellation -- gets them from one more pass over a copy of the element state (the sums
+  // depend on the positions alone).
+  bool totals_sampled = true;
   auto sample_history = [&] {
+    if (!totals_sampled) {
+      ElementState scratch = elements;
+      KernelParams sums_only = params;
+      sums_only.sample = true, sums_only.dt = 0.0;
+      KernelTotals sums;
+      std::vector<NodeForce> unused(nn);
+      compute_element_forces(geometry, nodes.data(), sums_only, 0, ne, scratch, sums,
+                             unused.data());
+      totals.element_energy = sums.element_energy;
+      totals.max_aspect_ratio = sums.max_aspect_ratio;
+      totals_sampled = true;
+    }
     diagnostics.sample(view, elements, kernel_view, totals, t, dt_stable, dissipated, external_work,
                        result.history);
     result.history.min_dt.push_back(interval_min_dt);
@@ -435,7 +452,9 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
       x_old[k] = x[i], y_old[k] = y[i], fext_old_x[k] = fext_x[i], fext_old_y[k] = fext_y[i];
     }
     t = (stop - t <= dt_stable + tiny) ? stop : t + dt;
-    totals = evaluate(t, dt, t >= schedule.next_history_time() - tiny);
+    // A sample follows at the next history time and at the end time (the final state).
+    totals_sampled = t >= schedule.next_history_time() - tiny || t >= options.end_time_s - tiny;
+    totals = evaluate(t, dt, totals_sampled);
     ++steps;
     if (totals.bad_element >= 0) {
       result.status = RunStatus::kFailed;
