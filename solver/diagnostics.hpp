@@ -56,9 +56,6 @@ class Diagnostics {
 
   // longest edge^2 / (2 area) of every element in its current shape.
   std::vector<double> aspect_ratios(const NodalView& nodes) const;
-  // The stored energy of the whole body (J/m): the nodes' volumetric and the stabilisation
-  // energy (average nodal pressure) plus the elements' (KernelTotals::element_energy).
-  double stored_energy(const KernelView& kernel, const KernelTotals& totals) const;
   // The volumetric mean stress the kernel applied to element e (average nodal pressure only).
   double volumetric_mean_stress(const KernelView& kernel, std::size_t e) const;
   // Cauchy stress of element e; its mean stress under the element formulation (kernel: the
@@ -67,6 +64,10 @@ class Diagnostics {
                                const KernelView& kernel, std::size_t e) const;
 
  private:
+  // The stored energy of the whole body (J/m): the nodes' volumetric and the stabilisation
+  // energy (average nodal pressure) plus the elements' (KernelTotals::element_energy).
+  double stored_energy(const KernelView& kernel, const KernelTotals& totals) const;
+
   const Problem& problem_;
   const ElementGeometry& geometry_;
   int modes_;

@@ -19,6 +19,10 @@ struct alignas(32) PackedNode {
 // The internal force on a node, N/m (per metre of thickness).
 struct alignas(16) NodeForce {
   ForceLanes lanes;  // x, y
+  NodeForce& operator+=(const NodeForce& other) {
+    lanes += other.lanes;
+    return *this;
+  }
 };
 
 }  // namespace softshock

@@ -9,6 +9,7 @@
 #include <cstdio>
 #include <limits>
 #include <stdexcept>
+#include <type_traits>
 #include <utility>
 
 #include "diagnostics.hpp"
@@ -267,11 +268,11 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
     };
     // Per-thread partial nodal sums, added in thread order by each thread's node range, which
     // it also clears for the next step's sums (while the lines are in cache: no separate pass).
-    auto sum_threads = [&](std::vector<std::vector<double>>& parts, std::size_t n0, std::size_t n1,
-                           double* out) {
+    auto sum_threads = [&](auto& parts, std::size_t n0, std::size_t n1, auto* out) {
+      using Value = std::remove_cvref_t<decltype(*out)>;  // double or NodeForce
       for (std::size_t i = n0; i < n1; ++i) {
-        double sum = 0.0;
-        for (int k = 0; k < threads; ++k) sum += parts[k][i], parts[k][i] = 0.0;
+        Value sum{};
+        for (int k = 0; k < threads; ++k) sum += parts[k][i], parts[k][i] = Value{};
         out[i] = sum;
       }
     };
@@ -316,14 +317,7 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
     };
     auto correct = [&](int tid) {  // a+ = M^-1 f; v+ = v* + dt/2 a+
       const auto [n0, n1] = node_range(tid);
-      if (threads > 1) {
-        for (std::size_t i = n0; i < n1; ++i) {
-          ForceLanes sum{0.0, 0.0};
-          for (int k = 0; k < threads; ++k)
-            sum += thread_force[k][i].lanes, thread_force[k][i].lanes = ForceLanes{0.0, 0.0};
-          force[i].lanes = sum;
-        }
-      }
+      if (threads > 1) sum_threads(thread_force, n0, n1, force.data());
       correct_nodes(dt, n0, n1, force.data(), fext_x.data(), fext_y.data(), free_x.data(),
                     free_y.data(), mass.data(), ax.data(), ay.data(), vx.data(), vy.data());
     };
