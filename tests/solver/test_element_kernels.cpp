@@ -14,12 +14,12 @@ namespace softshock {
 namespace {
 
 struct KernelFixture {
-  Mesh mesh = make_rectangle_mesh(4e-6, 3e-6, 8, 6);
+  Mesh mesh;
   ElementGeometry g;
   ElementState s;
   KernelParams p;
 
-  KernelFixture() {
+  explicit KernelFixture(int nx = 8, int ny = 6) : mesh(make_rectangle_mesh(4e-6, 3e-6, nx, ny)) {
     p.kappa = 2e9, p.tait_n = 7.15, p.mu = 5e3, p.rho0 = 1000.0, p.c1 = 1.0, p.c2 = 0.1;
     p.ramp_inv = 1e300;  // the thesis's on/off switch: the harder case for frame indifference
     const std::size_t ne = mesh.element_count();
@@ -218,6 +218,74 @@ TEST(ElementKernel, SampleSumsTheElementsStoredEnergyAndLargestAspectRatio) {
     EXPECT_NEAR(sampled.element_energy, energy, 1e-12 * std::fabs(energy)) << nodal;
     EXPECT_NEAR(sampled.max_aspect_ratio, max_aspect, 1e-14 * max_aspect) << nodal;
   }
+}
+
+// The loop's totals are reduced a block at a time, eight lanes at once: they must be what a scan
+// element by element gives -- the smallest stable step exactly, and its first element, the
+// dissipation to round-off, an inverted element near the end of the last block -- over a range
+// that starts off a lane boundary and ends mid-lane. Every element of a 624-element mesh appears
+// twice in a row (elements 2i and 2i + 1), so the smallest step is always a tie of neighbours;
+// the range [3, 1240) has blocks of 256 (four) and 213.
+TEST(ElementKernel, BlockReductionsMatchAnElementByElementScan) {
+  KernelFixture fx(24, 13);
+  fx.p.eta = 0.2;  // viscous dissipation in every element
+  ElementGeometry g;
+  for (std::size_t e = 0; e < fx.g.size(); ++e)
+    for (int copy = 0; copy < 2; ++copy) {
+      g.node0.push_back(fx.g.node0[e]), g.node1.push_back(fx.g.node1[e]);
+      g.node2.push_back(fx.g.node2[e]);
+      g.dm_inv_xx.push_back(fx.g.dm_inv_xx[e]), g.dm_inv_xy.push_back(fx.g.dm_inv_xy[e]);
+      g.dm_inv_yx.push_back(fx.g.dm_inv_yx[e]), g.dm_inv_yy.push_back(fx.g.dm_inv_yy[e]);
+      g.area0.push_back(fx.g.area0[e]);
+    }
+  const std::size_t ne = g.size(), begin = 3, end = 1240;
+  ASSERT_EQ(ne, 1248u);
+  ElementState state;
+  state.resize(ne);
+  std::vector<double> x, y;
+  fx.deform({1.0, 0.0, 0.0, 1.0}, x, y);
+  std::vector<double> nfx(x.size()), nfy(x.size());
+  KernelTotals first;
+  add_element_forces(g, x, y, fx.p, 0, ne, state, first, nfx, nfy);  // the lagged state
+  fx.deform({0.995, 0.002, 0.0, 0.998}, x, y);
+  for (std::size_t i = 0; i < x.size(); ++i)
+    x[i] += 4e-8 * std::sin(3.1 * i), y[i] += 4e-8 * std::cos(1.7 * i);
+  fx.p.dt = 1e-10;
+
+  std::vector<double> step_sq(ne, 0.0);
+  double smallest = 1e300, dissipation = 0.0;
+  int64_t smallest_element = -1;
+  for (std::size_t e = begin; e < end; ++e) {
+    ElementState s = state;
+    KernelTotals one;
+    add_element_forces(g, x, y, fx.p, e, e + 1, s, one, nfx, nfy);
+    step_sq[e] = one.min_step_sq;
+    if (one.min_step_sq < smallest)
+      smallest = one.min_step_sq, smallest_element = static_cast<int64_t>(e);
+    dissipation += one.dissipation;
+  }
+  EXPECT_EQ(std::count(step_sq.begin(), step_sq.end(), smallest), 2);  // a tie, as built
+  ElementState s = state;
+  KernelTotals all;
+  add_element_forces(g, x, y, fx.p, begin, end, s, all, nfx, nfy);
+  EXPECT_EQ(all.min_step_sq, smallest);
+  EXPECT_EQ(all.min_step_element, smallest_element);
+  EXPECT_GT(std::fabs(dissipation), 0.0);
+  EXPECT_NEAR(all.dissipation, dissipation, 1e-12 * std::fabs(dissipation));
+  EXPECT_LT(all.bad_element, 0);
+
+  // An element near the end of the last block (its 206th of 213: lanes 200-207, then padding)
+  // turned inside out is found.
+  const std::size_t victim = begin + 4 * 256 + 205;
+  const int32_t a = g.node0[victim], b = g.node1[victim], c = g.node2[victim];
+  x[b] = x[a] - 1e-7, y[b] = y[a], x[c] = x[a] + 1e-7, y[c] = y[a] + 1e-9;  // clockwise
+  s = state;
+  KernelTotals bad;
+  add_element_forces(g, x, y, fx.p, begin, end, s, bad, nfx, nfy);
+  // The first offender: the victim or an element sharing a moved node (2 x 48 per mesh row).
+  EXPECT_GE(bad.bad_element, static_cast<int64_t>(victim - 2 * 96));
+  EXPECT_LE(bad.bad_element, static_cast<int64_t>(victim));
+  EXPECT_LE(bad.bad_j, 0.0);
 }
 
 TEST(ElementKernel, InvertedElementIsReported) {
