@@ -1,5 +1,9 @@
 #include "integrator.hpp"
 
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
 namespace softshock {
 
 __attribute__((target_clones("avx512f", "avx2", "default"))) void predict_nodes(
@@ -27,6 +31,25 @@ __attribute__((target_clones("avx512f", "avx2", "default"))) void correct_nodes(
     vx[i] += 0.5 * dt * ax[i];
     vy[i] += 0.5 * dt * ay[i];
   }
+}
+
+double volume_change_step(const ElementGeometry& g, const double* vx, const double* vy,
+                          const double* ax, const double* ay, double max_volume_change) {
+  double dt = std::numeric_limits<double>::infinity();
+  for (std::size_t e = 0; e < g.size(); ++e) {
+    const int32_t a = g.node0[e], b = g.node1[e], c = g.node2[e];
+    const double d0 = g.dm_inv_xx[e], d1 = g.dm_inv_xy[e], d2 = g.dm_inv_yx[e], d3 = g.dm_inv_yy[e];
+    // div u = tr(grad u), grad u = [u_b - u_a, u_c - u_a] Dm^-1 (continuum::deformation_gradient).
+    auto divergence = [&](const double* ux, const double* uy) {
+      return (ux[b] - ux[a]) * d0 + (ux[c] - ux[a]) * d2 + (uy[b] - uy[a]) * d1 +
+             (uy[c] - uy[a]) * d3;
+    };
+    const double p = std::fabs(divergence(vx, vy)), q = std::fabs(divergence(ax, ay));
+    // The positive root of p dt + q dt^2 / 2 = m, written without cancellation (q = 0: m / p).
+    const double root = std::sqrt(p * p + 2.0 * q * max_volume_change);
+    if (p + root > 0.0) dt = std::min(dt, 2.0 * max_volume_change / (p + root));
+  }
+  return dt;
 }
 
 }  // namespace softshock

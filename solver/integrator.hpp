@@ -5,6 +5,7 @@
 #include <cstddef>
 #include <cstdint>
 
+#include "element_kernels.hpp"
 #include "node_layout.hpp"
 
 namespace softshock {
@@ -22,5 +23,14 @@ void correct_nodes(double dt, std::size_t begin, std::size_t end, const NodeForc
                    const uint8_t* __restrict free_x, const uint8_t* __restrict free_y,
                    const double* __restrict mass, double* __restrict ax, double* __restrict ay,
                    double* __restrict vx, double* __restrict vy);
+
+// The largest step over which no element's area is predicted to change by more than
+// max_volume_change (a fraction), from the nodes' velocities and accelerations at the start of the
+// step: |dt div v + dt^2/2 div a| <= max_volume_change, bounded by p dt + q dt^2 / 2 with p = |div
+// v|, q = |div a| (gradients on the reference configuration). For the first step: the elastic
+// estimate is taken at rest and cannot see a load that starts at full strength (docs/model.md,
+// "Time step").
+double volume_change_step(const ElementGeometry& geometry, const double* vx, const double* vy,
+                          const double* ax, const double* ay, double max_volume_change);
 
 }  // namespace softshock

@@ -1,14 +1,19 @@
 // Patch test and frame indifference of the element kernel (physics.md section 9).
 #include <gtest/gtest.h>
 
+#include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <numbers>
+#include <utility>
 
 #include "solver/continuum.hpp"
 #include "solver/element_kernels.hpp"
+#include "solver/integrator.hpp"
 #include "solver/mesh.hpp"
 #include "solver/nodal_pressure.hpp"
+#include "solver/ring_mesher.hpp"
 
 namespace softshock {
 namespace {
@@ -19,7 +24,9 @@ struct KernelFixture {
   ElementState s;
   KernelParams p;
 
-  explicit KernelFixture(int nx = 8, int ny = 6) : mesh(make_rectangle_mesh(4e-6, 3e-6, nx, ny)) {
+  explicit KernelFixture(int nx = 8, int ny = 6)
+      : KernelFixture(make_rectangle_mesh(4e-6, 3e-6, nx, ny)) {}
+  explicit KernelFixture(Mesh m) : mesh(std::move(m)) {
     p.kappa = 2e9, p.tait_n = 7.15, p.mu = 5e3, p.rho0 = 1000.0, p.c1 = 1.0, p.c2 = 0.1;
     p.ramp_inv = 1e300;  // the thesis's on/off switch: the harder case for frame indifference
     const std::size_t ne = mesh.element_count();
@@ -516,6 +523,102 @@ TEST(ViscousStress, BulkAndShearParts) {
   for (double v : pv_bulk_shear) EXPECT_NEAR(v, 0.0, 1e-12);
   const cm::Mat2 pv_eta = cm::viscous_piola(shear, eye, cm::cofactor(shear), 0.2, 0, dt);
   EXPECT_NEAR(pv_eta[1], 0.2 * 1e6, 1e-9 * 2e5);  // sigma_xy = eta * shear rate
+}
+
+// ---- the stable step ---------------------------------------------------------------------------
+
+// The first step's volume-change bound (integrator.hpp): for the homogeneous fields v = g X and
+// a = s X every element's area changes at the rate div v = 2g (acceleration div a = 2s), so the
+// bound is the root of 2|g| dt + |s| dt^2 = m exactly: m / (2|g|) without acceleration,
+// sqrt(m / |s|) from rest, and in between for both; compression and expansion alike.
+TEST(StableStep, FirstStepBoundKeepsThePredictedVolumeChangeWithinTheLimit) {
+  KernelFixture fx;
+  const std::size_t nn = fx.mesh.node_count();
+  const double m = 0.1;
+  auto bound = [&](double g, double s) {
+    std::vector<double> vx(nn), vy(nn), ax(nn), ay(nn);
+    for (std::size_t i = 0; i < nn; ++i) {
+      vx[i] = g * fx.mesh.x[i], vy[i] = g * fx.mesh.y[i];
+      ax[i] = s * fx.mesh.x[i], ay[i] = s * fx.mesh.y[i];
+    }
+    return volume_change_step(fx.g, vx.data(), vy.data(), ax.data(), ay.data(), m);
+  };
+  EXPECT_NEAR(bound(-1e6, 0.0), m / 2e6, 1e-12 * m / 2e6);
+  EXPECT_NEAR(bound(1e6, 0.0), m / 2e6, 1e-12 * m / 2e6);
+  EXPECT_NEAR(bound(0.0, -1e15), std::sqrt(m / 1e15), 1e-12 * std::sqrt(m / 1e15));
+  const double dt = bound(-1e6, 1e15);
+  EXPECT_NEAR(2e6 * dt + 1e15 * dt * dt, m, 1e-12 * m);
+  EXPECT_TRUE(std::isinf(bound(0.0, 0.0)));  // at rest and unloaded: no bound
+}
+
+// Central differences are stable for dt <= 2 / omega_max, omega_max^2 the largest eigenvalue of
+// M^-1 K (lumped masses M, tangent stiffness K). K is assembled here column by column from central
+// differences of the kernel's own nodal forces, on a ring disk of ~300 elements at rest and
+// uniformly compressed to J = 0.7 (the default run's refocus at the centre compresses elements to
+// J ~ 0.67; K(J) is then 13 kappa and the initial-stress stiffness of a 3.9 GPa pressure enters),
+// for plain P1 and for the average nodal pressure element (beta = 0.01). The solver's step,
+// cfl sqrt(min_step_sq) at the default cfl = 0.5, must lie below 2 / omega_max. (No viscosity: the
+// damped limit is not covered here.) Margins measured: P1 0.44-0.46 of the limit, the nodal-
+// pressure element 0.29-0.30 -- its nodal averaging lowers omega_max, which the element estimate
+// h / c does not see.
+TEST(StableStep, LiesWithinTheCentralDifferenceLimitOfTheAssembledOperator) {
+  const double cfl = 0.5;  // examples/baseline.json
+  for (const bool nodal : {false, true})
+    for (const double j : {1.0, 0.7}) {
+      KernelFixture fx(mesh_disk_rings(90e-6, 300));
+      const std::size_t nn = fx.mesh.node_count(), dofs = 2 * nn;
+      const double stretch = std::sqrt(j);
+      std::vector<double> x(nn), y(nn);
+      for (std::size_t i = 0; i < nn; ++i)
+        x[i] = stretch * fx.mesh.x[i], y[i] = stretch * fx.mesh.y[i];
+      auto forces = [&](const std::vector<double>& px, const std::vector<double>& py,
+                        KernelTotals* totals) {
+        std::vector<double> f(dofs, 0.0);
+        if (nodal) {
+          const NodalRun r = nodal_forces(fx, px, py, 0.01);
+          for (std::size_t i = 0; i < nn; ++i) f[2 * i] = r.fx[i], f[2 * i + 1] = r.fy[i];
+          if (totals) *totals = r.totals;
+        } else {
+          std::vector<double> nfx(nn, 0.0), nfy(nn, 0.0);
+          KernelTotals t;
+          add_element_forces(fx.g, px, py, fx.p, 0, fx.g.size(), fx.s, t, nfx, nfy);
+          for (std::size_t i = 0; i < nn; ++i) f[2 * i] = nfx[i], f[2 * i + 1] = nfy[i];
+          if (totals) *totals = t;
+        }
+        return f;
+      };
+      KernelTotals at_state;
+      forces(x, y, &at_state);
+      ASSERT_LT(at_state.bad_element, 0);
+      const double dt = cfl * std::sqrt(at_state.min_step_sq);
+
+      // K = -d(force)/d(position), a column per degree of freedom; perturbations of 1e-7 of the
+      // element size keep the response linear (second-order error ~1e-14) and far above the
+      // forces' round-off.
+      const double h = 90e-6 / std::sqrt(fx.g.size() / 3.0), eps = 1e-7 * h;
+      Eigen::MatrixXd k(dofs, dofs);
+      for (std::size_t d = 0; d < dofs; ++d) {
+        std::vector<double> xp = x, yp = y, xm = x, ym = y;
+        (d % 2 ? yp : xp)[d / 2] += eps;
+        (d % 2 ? ym : xm)[d / 2] -= eps;
+        const std::vector<double> fp = forces(xp, yp, nullptr), fm = forces(xm, ym, nullptr);
+        for (std::size_t r = 0; r < dofs; ++r) k(r, d) = -(fp[r] - fm[r]) / (2.0 * eps);
+      }
+      const std::vector<double> v0 = reference_nodal_areas(fx.g, nn);
+      Eigen::VectorXd inv_sqrt_mass(dofs);
+      for (std::size_t d = 0; d < dofs; ++d)
+        inv_sqrt_mass(d) = 1.0 / std::sqrt(fx.p.rho0 * v0[d / 2]);
+      const Eigen::MatrixXd a =
+          inv_sqrt_mass.asDiagonal() * (0.5 * (k + k.transpose())) * inv_sqrt_mass.asDiagonal();
+      const double omega_sq =
+          Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(a, Eigen::EigenvaluesOnly)
+              .eigenvalues()
+              .maxCoeff();
+      const double limit = 2.0 / std::sqrt(omega_sq);
+      EXPECT_LT(dt, limit) << (nodal ? "nodal pressure" : "P1") << ", J = " << j;
+      std::printf("stable step, %s, J = %.1f: dt = %.3g s, limit 2/omega_max = %.3g s (%.2f)\n",
+                  nodal ? "average nodal pressure" : "plain P1", j, dt, limit, dt / limit);
+    }
 }
 
 }  // namespace
