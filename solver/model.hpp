@@ -96,7 +96,7 @@ struct Problem {
 
 struct SolverOptions {
   double end_time_s = 800e-9;
-  double cfl = 0.5;
+  double cfl = 0.7;  // docs/model.md, "Time integration"
   double history_interval_s = 1e-9;
   double output_interval_s = 20e-9;  // <= 0: no field frames
   int modes = 64;                    // Fourier modes 0..modes of the rim radial displacement
