@@ -8,6 +8,7 @@
 
 #include "continuum.hpp"
 #include "nodal_pressure.hpp"
+#include "vector_math.hpp"
 
 namespace softshock {
 namespace {
@@ -16,6 +17,90 @@ constexpr double kTwoPi = 2.0 * std::numbers::pi;
 
 int64_t edge_key(int32_t a, int32_t b) {
   return (static_cast<int64_t>(std::min(a, b)) << 32) | static_cast<uint32_t>(std::max(a, b));
+}
+
+// An element's Cauchy stress from its F, its volumetric mean stress sm and the viscous P_v and
+// viscosities of the last evaluation: elastic sigma_m I + (mu J^-2/3 / J)(B - I1/3 I), B = F F^T
+// (B_zz = 1), plus the viscous P_v F^T / J and its zz part from the shear and bulk viscosities
+// that made it. Branch-free, so the frame's loop over every element vectorises.
+inline ElementStress cauchy_stress(const continuum::Mat2& f, double sm, double mu,
+                                   const ElementState& s, std::size_t e) {
+  namespace cm = continuum;
+  const double j = cm::det(f);
+  const double j_minus_23 = ::cbrt(1.0 / (j * j));  // as the kernel; cheaper than pow
+  const double i1 = cm::first_invariant(f);
+  const double k = mu * j_minus_23 / j;
+  ElementStress out;
+  out.xx = sm + k * (f[0] * f[0] + f[1] * f[1] - i1 / 3.0);
+  out.xy = k * (f[0] * f[2] + f[1] * f[3]);
+  out.yy = sm + k * (f[2] * f[2] + f[3] * f[3] - i1 / 3.0);
+  out.zz = sm + k * (1.0 - i1 / 3.0);
+  const double vxx = (s.pv_xx[e] * f[0] + s.pv_xy[e] * f[1]) / j;
+  const double vxy = (s.pv_xx[e] * f[2] + s.pv_xy[e] * f[3]) / j;
+  const double vyy = (s.pv_yx[e] * f[2] + s.pv_yy[e] * f[3]) / j;
+  out.xx += vxx, out.xy += vxy, out.yy += vyy;
+  out.zz += cm::viscous_zz(s.viscosity[e], s.bulk_viscosity[e], vxx + vyy);
+  out.j = j;
+  return out;
+}
+
+// The frame's element fields over elements [0, ne): J, mean, radial, hoop and von Mises stress.
+// volumetric[e]: the element's volumetric mean stress (the nodal-pressure element's), or null for
+// plain P1 (its own Tait stress from J). Blocked like the kernel: indexed loads into small
+// buffers, then a branch-free loop with libmvec's cbrt, exp and log.
+template <bool kPlain>
+inline __attribute__((always_inline)) void element_fields(const ElementGeometry& g,
+                                                          const NodalView& nodes,
+                                                          const ElementState& s,
+                                                          const double* volumetric, double kappa,
+                                                          double n, double mu, double ox, double oy,
+                                                          FieldFrame& fr) {
+  namespace cm = continuum;
+  constexpr std::size_t kBlock = 256;
+  alignas(64) double e1x[kBlock], e1y[kBlock], e2x[kBlock], e2y[kBlock], cx[kBlock], cy[kBlock];
+  const std::size_t ne = g.size();
+  for (std::size_t block = 0; block < ne; block += kBlock) {
+    const std::size_t count = std::min(kBlock, ne - block);
+    for (std::size_t k = 0; k < count; ++k) {
+      const std::size_t e = block + k;
+      const int32_t a = g.node0[e], b = g.node1[e], c = g.node2[e];
+      e1x[k] = nodes.x[b] - nodes.x[a], e1y[k] = nodes.y[b] - nodes.y[a];
+      e2x[k] = nodes.x[c] - nodes.x[a], e2y[k] = nodes.y[c] - nodes.y[a];
+      cx[k] = (nodes.x[a] + nodes.x[b] + nodes.x[c]) / 3.0 - ox;
+      cy[k] = (nodes.y[a] + nodes.y[b] + nodes.y[c]) / 3.0 - oy;
+    }
+#pragma GCC ivdep
+    for (std::size_t k = 0; k < count; ++k) {
+      const std::size_t e = block + k;
+      const cm::Mat2 f = cm::deformation_gradient(
+          e1x[k], e1y[k], e2x[k], e2y[k],
+          {g.dm_inv_xx[e], g.dm_inv_xy[e], g.dm_inv_yx[e], g.dm_inv_yy[e]});
+      double sm;
+      if constexpr (kPlain)
+        sm = cm::tait_mean_stress(kappa, n, ::exp(-n * ::log(cm::det(f))));
+      else
+        sm = volumetric[e];
+      const ElementStress st = cauchy_stress(f, sm, mu, s, e);
+      const double r = std::sqrt(cx[k] * cx[k] + cy[k] * cy[k]);
+      const double ex = r > 0 ? cx[k] / r : 1, ey = r > 0 ? cy[k] / r : 0;
+      fr.J[e] = st.j;
+      fr.mean_stress[e] = st.mean();
+      fr.radial_stress[e] = ex * ex * st.xx + 2 * ex * ey * st.xy + ey * ey * st.yy;
+      fr.hoop_stress[e] = ey * ey * st.xx - 2 * ex * ey * st.xy + ex * ex * st.yy;
+      const double dxy = st.xx - st.yy, dyz = st.yy - st.zz, dzx = st.zz - st.xx;
+      fr.von_mises[e] = std::sqrt(0.5 * (dxy * dxy + dyz * dyz + dzx * dzx) + 3.0 * st.xy * st.xy);
+    }
+  }
+}
+
+__attribute__((target_clones("avx512f", "avx2", "default"))) void frame_element_fields(
+    const ElementGeometry& g, const NodalView& nodes, const ElementState& s,
+    const double* volumetric, double kappa, double n, double mu, double ox, double oy,
+    FieldFrame& fr) {
+  if (volumetric == nullptr)
+    element_fields<true>(g, nodes, s, volumetric, kappa, n, mu, ox, oy, fr);
+  else
+    element_fields<false>(g, nodes, s, volumetric, kappa, n, mu, ox, oy, fr);
 }
 
 }  // namespace
@@ -140,30 +225,12 @@ ElementStress Diagnostics::element_stress(const NodalView& nodes, const ElementS
   const cm::Mat2 f = cm::deformation_gradient(
       nodes.x[b] - nodes.x[a], nodes.y[b] - nodes.y[a], nodes.x[c] - nodes.x[a],
       nodes.y[c] - nodes.y[a], {g.dm_inv_xx[e], g.dm_inv_xy[e], g.dm_inv_yx[e], g.dm_inv_yy[e]});
-  const double j = cm::det(f);
   const double n = mat.tait_n();
-  const double j_minus_23 = std::cbrt(1.0 / (j * j));  // as the kernel; cheaper than pow
   // Average nodal pressure: the mean stress the kernel applied; plain P1: the element's own.
   const double sm = !nodal_area0_.empty() && kernel.nodal_mean_stress != nullptr
                         ? volumetric_mean_stress(kernel, e)
-                        : cm::tait_mean_stress(mat.bulk_modulus_Pa, n, std::pow(j, -n));
-  const double i1 = cm::first_invariant(f);
-  // Elastic Cauchy stress: sigma_m I + (mu J^-2/3 / J)(B - I1/3 I), B = F F^T (B_zz = 1).
-  const double k = mat.shear_modulus_Pa * j_minus_23 / j;
-  ElementStress out;
-  out.xx = sm + k * (f[0] * f[0] + f[1] * f[1] - i1 / 3.0);
-  out.xy = k * (f[0] * f[2] + f[1] * f[3]);
-  out.yy = sm + k * (f[2] * f[2] + f[3] * f[3] - i1 / 3.0);
-  out.zz = sm + k * (1.0 - i1 / 3.0);
-  // Viscous Cauchy stress P_v F^T / J from the last evaluation; its zz part from the shear and
-  // bulk viscosities that made it.
-  const double vxx = (s.pv_xx[e] * f[0] + s.pv_xy[e] * f[1]) / j;
-  const double vxy = (s.pv_xx[e] * f[2] + s.pv_xy[e] * f[3]) / j;
-  const double vyy = (s.pv_yx[e] * f[2] + s.pv_yy[e] * f[3]) / j;
-  out.xx += vxx, out.xy += vxy, out.yy += vyy;
-  out.zz += cm::viscous_zz(s.viscosity[e], s.bulk_viscosity[e], vxx + vyy);
-  out.j = j;
-  return out;
+                        : cm::tait_mean_stress(mat.bulk_modulus_Pa, n, std::pow(cm::det(f), -n));
+  return cauchy_stress(f, sm, mat.shear_modulus_Pa, s, e);
 }
 
 void Diagnostics::sample(const NodalView& nodes, const ElementState& s, const KernelView& kernel,
@@ -283,20 +350,15 @@ FieldFrame Diagnostics::frame(const NodalView& nodes, const ElementState& s,
   fr.J.resize(ne), fr.mean_stress.resize(ne), fr.radial_stress.resize(ne);
   fr.hoop_stress.resize(ne), fr.von_mises.resize(ne);
   fr.aspect_ratio = aspect_ratios(nodes);
-  for (std::size_t e = 0; e < ne; ++e) {
-    const ElementStress st = element_stress(nodes, s, kernel, e);
-    const auto& tri = mesh.triangles[e];
-    const double cx = (nodes.x[tri[0]] + nodes.x[tri[1]] + nodes.x[tri[2]]) / 3.0 - origin_[0];
-    const double cy = (nodes.y[tri[0]] + nodes.y[tri[1]] + nodes.y[tri[2]]) / 3.0 - origin_[1];
-    const double r = std::hypot(cx, cy);
-    const double ex = r > 0 ? cx / r : 1, ey = r > 0 ? cy / r : 0;
-    fr.J[e] = st.j;
-    fr.mean_stress[e] = st.mean();
-    fr.radial_stress[e] = ex * ex * st.xx + 2 * ex * ey * st.xy + ey * ey * st.yy;
-    fr.hoop_stress[e] = ey * ey * st.xx - 2 * ex * ey * st.xy + ex * ex * st.yy;
-    const double dxy = st.xx - st.yy, dyz = st.yy - st.zz, dzx = st.zz - st.xx;
-    fr.von_mises[e] = std::sqrt(0.5 * (dxy * dxy + dyz * dyz + dzx * dzx) + 3.0 * st.xy * st.xy);
+  const Material& mat = problem_.material;
+  std::vector<double> volumetric;
+  if (!nodal_area0_.empty() && kernel.nodal_mean_stress != nullptr) {
+    volumetric.resize(ne);
+    for (std::size_t e = 0; e < ne; ++e) volumetric[e] = volumetric_mean_stress(kernel, e);
   }
+  frame_element_fields(geometry_, nodes, s, volumetric.empty() ? nullptr : volumetric.data(),
+                       mat.bulk_modulus_Pa, mat.tait_n(), mat.shear_modulus_Pa, origin_[0],
+                       origin_[1], fr);
   return fr;
 }
 

@@ -4,15 +4,7 @@
 #include <cmath>
 
 #include "continuum.hpp"
-
-// glibc's libmvec has vector variants of exp and log; its headers announce them only under
-// -ffast-math, which would also assume no NaN and defeat the inversion check. Declaring the
-// variants here lets the branch-free loop below vectorise with IEEE semantics otherwise intact.
-extern "C" {
-__attribute__((simd("notinbranch"))) double exp(double) noexcept;
-__attribute__((simd("notinbranch"))) double log(double) noexcept;
-__attribute__((simd("notinbranch"))) double cbrt(double) noexcept;
-}
+#include "vector_math.hpp"
 
 namespace softshock {
 

@@ -4,12 +4,7 @@
 #include <cmath>
 
 #include "continuum.hpp"
-
-// libmvec's vector log/exp (see element_kernels.cpp for why they are declared here).
-extern "C" {
-__attribute__((simd("notinbranch"))) double exp(double) noexcept;
-__attribute__((simd("notinbranch"))) double log(double) noexcept;
-}
+#include "vector_math.hpp"
 
 namespace softshock {
 

@@ -12,6 +12,7 @@
 #include <filesystem>
 #include <limits>
 #include <optional>
+#include <utility>
 
 #include "server/jobs/mesh_process.hpp"
 #include "server/log.hpp"
@@ -482,7 +483,7 @@ void JobRunner::run_job(const std::string& id, CancelToken& cancel) {
   const double frame_bytes =
       problem.mesh.element_count() * 56.0 + 64.0 * static_cast<double>(problem.mesh.x.size());
   bool disk_full = false;
-  control.on_frame = [&](const FieldFrame& frame) {
+  control.on_frame = [&](FieldFrame frame) {
     if (!io_error.empty()) return;
     if (const double free = free_bytes(); free < frame_bytes + config_.min_free_bytes) {
       disk_full = true;
@@ -492,7 +493,7 @@ void JobRunner::run_job(const std::string& id, CancelToken& cancel) {
       return;
     }
     try {
-      writer->write_frame(frame);
+      writer->write_frame(std::move(frame));
     } catch (const std::exception& e) {
       io_error = e.what();
       cancel.request(StopReason::kInternal);

@@ -17,6 +17,7 @@
 #include <iostream>
 #include <memory>
 #include <string>
+#include <utility>
 
 #include "solver/io/async_result_writer.hpp"
 #include "solver/mesh_cache.hpp"
@@ -184,7 +185,7 @@ int main(int argc, char** argv) {
     softshock::RunControl control;
     control.cancel = &g_cancel;
     control.on_progress = [&](const softshock::Progress& p) { reporter(p); };
-    control.on_frame = [&](const softshock::FieldFrame& f) { writer.write_frame(f); };
+    control.on_frame = [&](softshock::FieldFrame f) { writer.write_frame(std::move(f)); };
     const auto result = softshock::run_simulation(problem, softshock::make_options(spec), control);
     reporter.done();
     auto summary = softshock::summarize(problem, result);
