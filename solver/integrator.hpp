@@ -29,7 +29,7 @@ void correct_nodes(double dt, std::size_t begin, std::size_t end, const NodeForc
 // step: |dt div v + dt^2/2 div a| <= max_volume_change, bounded by p dt + q dt^2 / 2 with p = |div
 // v|, q = |div a| (gradients on the reference configuration). For the first step: the elastic
 // estimate is taken at rest and cannot see a load that starts at full strength (docs/model.md,
-// "Time step").
+// "Time integration").
 double volume_change_step(const ElementGeometry& geometry, const double* vx, const double* vy,
                           const double* ax, const double* ay, double max_volume_change);
 
