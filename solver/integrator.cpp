@@ -1,6 +1,5 @@
 #include "integrator.hpp"
 
-#include <algorithm>
 #include <cmath>
 #include <limits>
 
@@ -33,9 +32,9 @@ __attribute__((target_clones("avx512f", "avx2", "default"))) void correct_nodes(
   }
 }
 
-double volume_change_step(const ElementGeometry& g, const double* vx, const double* vy,
-                          const double* ax, const double* ay, double max_volume_change) {
-  double dt = std::numeric_limits<double>::infinity();
+StepBound volume_change_step(const ElementGeometry& g, const double* vx, const double* vy,
+                             const double* ax, const double* ay, double max_volume_change) {
+  StepBound bound{std::numeric_limits<double>::infinity(), -1};
   for (std::size_t e = 0; e < g.size(); ++e) {
     const int32_t a = g.node0[e], b = g.node1[e], c = g.node2[e];
     const double d0 = g.dm_inv_xx[e], d1 = g.dm_inv_xy[e], d2 = g.dm_inv_yx[e], d3 = g.dm_inv_yy[e];
@@ -47,9 +46,10 @@ double volume_change_step(const ElementGeometry& g, const double* vx, const doub
     const double p = std::fabs(divergence(vx, vy)), q = std::fabs(divergence(ax, ay));
     // The positive root of p dt + q dt^2 / 2 = m, written without cancellation (q = 0: m / p).
     const double root = std::sqrt(p * p + 2.0 * q * max_volume_change);
-    if (p + root > 0.0) dt = std::min(dt, 2.0 * max_volume_change / (p + root));
+    if (p + root > 0.0 && 2.0 * max_volume_change / (p + root) < bound.dt_s)
+      bound = {2.0 * max_volume_change / (p + root), static_cast<int64_t>(e)};
   }
-  return dt;
+  return bound;
 }
 
 }  // namespace softshock

@@ -30,7 +30,11 @@ void correct_nodes(double dt, std::size_t begin, std::size_t end, const NodeForc
 // v|, q = |div a| (gradients on the reference configuration). For the first step: the elastic
 // estimate is taken at rest and cannot see a load that starts at full strength (docs/model.md,
 // "Time integration").
-double volume_change_step(const ElementGeometry& geometry, const double* vx, const double* vy,
-                          const double* ax, const double* ay, double max_volume_change);
+struct StepBound {
+  double dt_s;      // +inf when nothing moves
+  int64_t element;  // the element that sets it (-1 when nothing moves)
+};
+StepBound volume_change_step(const ElementGeometry& geometry, const double* vx, const double* vy,
+                             const double* ax, const double* ay, double max_volume_change);
 
 }  // namespace softshock

@@ -395,9 +395,11 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
   // from t = 0 (the square pulse) would otherwise compress the loaded elements by ~20 % in the
   // first step at cfl 0.5 -- and drive a grid-scale instability at the rim from cfl ~0.7 (at
   // P-bar = 1; from cfl 0.5 at P-bar = 2.5).
-  const double dt_first = volume_change_step(geometry, vx.data(), vy.data(), ax.data(), ay.data(),
+  const StepBound first = volume_change_step(geometry, vx.data(), vy.data(), ax.data(), ay.data(),
                                              kFirstStepVolumeChange);
-  double dt_stable = std::min(options.cfl * std::sqrt(totals.min_step_sq), dt_first);
+  double dt_stable = options.cfl * std::sqrt(totals.min_step_sq);
+  if (first.dt_s < dt_stable)  // then that element sets the step (history's dt_element)
+    dt_stable = first.dt_s, totals.min_step_element = first.element;
   result.min_dt_s = result.max_dt_s = dt_stable;
   // The smallest stable step since the last sample, and its element.
   double interval_min_dt = dt_stable;

@@ -541,7 +541,7 @@ TEST(StableStep, FirstStepBoundKeepsThePredictedVolumeChangeWithinTheLimit) {
       vx[i] = g * fx.mesh.x[i], vy[i] = g * fx.mesh.y[i];
       ax[i] = s * fx.mesh.x[i], ay[i] = s * fx.mesh.y[i];
     }
-    return volume_change_step(fx.g, vx.data(), vy.data(), ax.data(), ay.data(), m);
+    return volume_change_step(fx.g, vx.data(), vy.data(), ax.data(), ay.data(), m).dt_s;
   };
   EXPECT_NEAR(bound(-1e6, 0.0), m / 2e6, 1e-12 * m / 2e6);
   EXPECT_NEAR(bound(1e6, 0.0), m / 2e6, 1e-12 * m / 2e6);
@@ -549,6 +549,17 @@ TEST(StableStep, FirstStepBoundKeepsThePredictedVolumeChangeWithinTheLimit) {
   const double dt = bound(-1e6, 1e15);
   EXPECT_NEAR(2e6 * dt + 1e15 * dt * dt, m, 1e-12 * m);
   EXPECT_TRUE(std::isinf(bound(0.0, 0.0)));  // at rest and unloaded: no bound
+
+  // One node pushed: the element that sets the bound is one of its own.
+  std::vector<double> vx(nn, 0.0), vy(nn, 0.0), zero(nn, 0.0);
+  const int32_t pushed = fx.g.node2[17];
+  vx[pushed] = 10.0;
+  const StepBound one = volume_change_step(fx.g, vx.data(), vy.data(), zero.data(), zero.data(), m);
+  ASSERT_GE(one.element, 0);
+  const auto e = static_cast<std::size_t>(one.element);
+  EXPECT_TRUE(fx.g.node0[e] == pushed || fx.g.node1[e] == pushed || fx.g.node2[e] == pushed);
+  EXPECT_EQ(volume_change_step(fx.g, zero.data(), zero.data(), zero.data(), zero.data(), m).element,
+            -1);
 }
 
 // Central differences are stable for dt <= 2 / omega_max, omega_max^2 the largest eigenvalue of
