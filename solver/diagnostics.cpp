@@ -44,7 +44,8 @@ inline ElementStress cauchy_stress(const continuum::Mat2& f, double sm, double m
   return out;
 }
 
-// The frame's element fields over elements [0, ne): J, mean, radial, hoop and von Mises stress.
+// The frame's element fields over elements [0, ne): J, aspect ratio, mean, radial, hoop and von
+// Mises stress.
 // volumetric[e]: the element's volumetric mean stress (the nodal-pressure element's), or null for
 // plain P1 (its own Tait stress from J). Blocked like the kernel: indexed loads into small
 // buffers, then a branch-free loop with libmvec's cbrt, exp and log.
@@ -84,6 +85,7 @@ inline __attribute__((always_inline)) void element_fields(const ElementGeometry&
       const double r = std::sqrt(cx[k] * cx[k] + cy[k] * cy[k]);
       const double ex = r > 0 ? cx[k] / r : 1, ey = r > 0 ? cy[k] / r : 0;
       fr.J[e] = st.j;
+      fr.aspect_ratio[e] = cm::aspect_ratio(e1x[k], e1y[k], e2x[k], e2y[k]);
       fr.mean_stress[e] = st.mean();
       fr.radial_stress[e] = ex * ex * st.xx + 2 * ex * ey * st.xy + ey * ey * st.yy;
       fr.hoop_stress[e] = ey * ey * st.xx - 2 * ex * ey * st.xy + ex * ex * st.yy;
@@ -178,17 +180,6 @@ Diagnostics::Diagnostics(const Problem& problem, const ElementGeometry& geometry
         rim_edges.count(edge_key(t[2], t[0])))
       rim_elements_.push_back(static_cast<int32_t>(e));
   }
-}
-
-std::vector<double> Diagnostics::aspect_ratios(const NodalView& nodes) const {
-  const ElementGeometry& g = geometry_;
-  std::vector<double> out(g.size());
-  for (std::size_t e = 0; e < g.size(); ++e) {
-    const int32_t a = g.node0[e], b = g.node1[e], c = g.node2[e];
-    out[e] = continuum::aspect_ratio(nodes.x[b] - nodes.x[a], nodes.y[b] - nodes.y[a],
-                                     nodes.x[c] - nodes.x[a], nodes.y[c] - nodes.y[a]);
-  }
-  return out;
 }
 
 double Diagnostics::volumetric_mean_stress(const KernelView& kernel, std::size_t e) const {
@@ -348,8 +339,7 @@ FieldFrame Diagnostics::frame(const NodalView& nodes, const ElementState& s,
     fr.velocity[2 * i + 1] = nodes.vy[i];
   }
   fr.J.resize(ne), fr.mean_stress.resize(ne), fr.radial_stress.resize(ne);
-  fr.hoop_stress.resize(ne), fr.von_mises.resize(ne);
-  fr.aspect_ratio = aspect_ratios(nodes);
+  fr.hoop_stress.resize(ne), fr.von_mises.resize(ne), fr.aspect_ratio.resize(ne);
   const Material& mat = problem_.material;
   std::vector<double> volumetric;
   if (!nodal_area0_.empty() && kernel.nodal_mean_stress != nullptr) {

@@ -54,8 +54,6 @@ class Diagnostics {
   FieldFrame frame(const NodalView& nodes, const ElementState& elements, const KernelView& kernel,
                    double t) const;
 
-  // longest edge^2 / (2 area) of every element in its current shape.
-  std::vector<double> aspect_ratios(const NodalView& nodes) const;
   // The volumetric mean stress the kernel applied to element e (average nodal pressure only).
   double volumetric_mean_stress(const KernelView& kernel, std::size_t e) const;
   // Cauchy stress of element e; its mean stress under the element formulation (kernel: the

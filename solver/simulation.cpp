@@ -307,7 +307,7 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
       pack_nodal_state(nodal_sm.data(), nodal_k.data(), n0, n1, nodes.data());
     };
     auto work = [&](int tid) {
-      const std::size_t e0 = ne * tid / threads, e1 = ne * (tid + 1) / threads;
+      const auto [e0, e1] = element_range(tid);
       NodeForce* out = threads > 1 ? thread_force[tid].data() : force.data();
       if (threads == 1) std::fill(out, out + nn, NodeForce{});  // else cleared by correct
       partial[tid] = KernelTotals{};
