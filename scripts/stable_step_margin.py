@@ -31,10 +31,14 @@ def largest_eigenvalue(k, inv_sqrt_mass):
 
 
 def margins(path):
-    with h5py.File(path, "r") as f:
-        xy = f["mesh/nodes"][:]
-        tri = f["mesh/triangles"][:]
-        spec = json.loads(f.attrs["spec"])
+    try:
+        with h5py.File(path, "r") as f:
+            xy = f["mesh/nodes"][:]
+            tri = f["mesh/triangles"][:]
+            spec = json.loads(f.attrs["spec"])
+    except (OSError, KeyError) as e:
+        sys.exit(f"{path}: not a softshock result file with mesh/nodes, mesh/triangles and a spec "
+                 f"attribute ({e})")
     material, element = spec.get("material", {}), spec.get("element", {})
     kappa = float(material.get("bulk_modulus", 2e9))
     mu = float(material.get("shear_modulus", 5e3))
