@@ -27,9 +27,9 @@ void correct_nodes(double dt, std::size_t begin, std::size_t end, const NodeForc
 // The largest step over which no element's area is predicted to change by more than
 // max_volume_change (a fraction), from the nodes' velocities and accelerations at the start of the
 // step: |dt div v + dt^2/2 div a| <= max_volume_change, bounded by p dt + q dt^2 / 2 with p = |div
-// v|, q = |div a| (gradients on the reference configuration). For the first step: the elastic
-// estimate is taken at rest and cannot see a load that starts at full strength (docs/model.md,
-// "Time integration").
+// v|, q = |div a| (gradients on the reference configuration). For the steps taken while the load
+// acts: the elastic estimate sees the material's stiffness, not a load that starts at full
+// strength (docs/model.md, "Time integration").
 struct StepBound {
   double dt_s;      // +inf when nothing moves
   int64_t element;  // the element that sets it (-1 when nothing moves)

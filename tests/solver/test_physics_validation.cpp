@@ -279,8 +279,11 @@ TEST(PhysicsValidation, ViscosityLimitedStepKeepsTheEnergyBalanceFromTheFirstSte
 // P-bar = 1 (A-bar(8 ns) 0.127 at cfl 0.8, against 0.0020) and already at the default cfl 0.5 for
 // P-bar = 2.5 (0.0133 against 0.0025 at cfl 0.3), i.e. 6-60 times the stable answer. The onset
 // must not depend on the Courant number beyond the time-discretisation error of a load switched
-// on at once: A-bar over the pulse within 20 % of the cfl = 0.3 run (measured: 8.8 % at cfl 0.8,
-// 4.7 % at 0.5, both at 2 ns, a ~7 nm difference in the rim's radius; 2.0 % at P-bar = 2.5).
+// on at once: A-bar over the pulse within 20 % of the cfl = 0.3 run (measured: 8.6 % at cfl 0.8,
+// at 2 ns, a ~7 nm difference in the rim's radius; 2.0 % at P-bar = 2.5). Bounding the first step
+// alone moved the instability to the next steps at stronger loads: P-bar = 5 at cfl 0.9 (+259 %)
+// and P-bar = 10 at the default cfl 0.7 (+16 %), so the bound holds while the load acts
+// (measured with it: 5.1 % and 4.0 %).
 TEST(PhysicsValidation, SquarePulseOnsetDoesNotDependOnTheCourantNumber) {
   auto abar = [](double pressure, double cfl) {
     const RunResult r = run_spec(spec_from(R"({"load":{"pressure":)" + std::to_string(pressure) +
@@ -289,7 +292,8 @@ TEST(PhysicsValidation, SquarePulseOnsetDoesNotDependOnTheCourantNumber) {
     EXPECT_EQ(r.status, RunStatus::kCompleted) << r.error;
     return r.history.abar;
   };
-  for (const auto& [pressure, cfl] : {std::pair{2e9, 0.8}, std::pair{5e9, 0.5}}) {
+  for (const auto& [pressure, cfl] :
+       {std::pair{2e9, 0.8}, std::pair{5e9, 0.5}, std::pair{1e10, 0.9}, std::pair{2e10, 0.7}}) {
     const std::vector<double> reference = abar(pressure, 0.3), test = abar(pressure, cfl);
     ASSERT_EQ(test.size(), reference.size());
     double worst = 0.0;
