@@ -32,10 +32,11 @@ __attribute__((target_clones("avx512f", "avx2", "default"))) void correct_nodes(
   }
 }
 
-StepBound volume_change_step(const ElementGeometry& g, const double* vx, const double* vy,
-                             const double* ax, const double* ay, double max_volume_change) {
+StepBound volume_change_step(const ElementGeometry& g, std::span<const int32_t> elements,
+                             const double* vx, const double* vy, const double* ax, const double* ay,
+                             double max_volume_change) {
   StepBound bound{std::numeric_limits<double>::infinity(), -1};
-  for (std::size_t e = 0; e < g.size(); ++e) {
+  for (const int32_t e : elements) {
     const int32_t a = g.node0[e], b = g.node1[e], c = g.node2[e];
     const double d0 = g.dm_inv_xx[e], d1 = g.dm_inv_xy[e], d2 = g.dm_inv_yx[e], d3 = g.dm_inv_yy[e];
     // div u = tr(grad u), grad u = [u_b - u_a, u_c - u_a] Dm^-1 (continuum::deformation_gradient).

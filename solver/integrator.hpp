@@ -4,6 +4,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <span>
 
 #include "element_kernels.hpp"
 #include "node_layout.hpp"
@@ -34,7 +35,9 @@ struct StepBound {
   double dt_s;      // +inf when nothing moves
   int64_t element;  // the element that sets it (-1 when nothing moves)
 };
-StepBound volume_change_step(const ElementGeometry& geometry, const double* vx, const double* vy,
-                             const double* ax, const double* ay, double max_volume_change);
+// Over the given elements (ascending), e.g. those the load acts on.
+StepBound volume_change_step(const ElementGeometry& geometry, std::span<const int32_t> elements,
+                             const double* vx, const double* vy, const double* ax, const double* ay,
+                             double max_volume_change);
 
 }  // namespace softshock
