@@ -390,16 +390,16 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
     result.error = describe_failure(totals, 0.0, 0);
     return result;
   }
-  // While the load acts, every step also keeps every element's predicted area change within
-  // kLoadStepVolumeChange. The stable step sees the material's stiffness, not the load: the
-  // elastic estimate of the first step is taken at rest, and a load at full strength from t = 0
-  // (the square pulse) would compress the loaded elements by ~20 % in the first step at cfl 0.5
-  // and drive a grid-scale instability at the rim from cfl ~0.7 (P-bar = 1). Bounding the first
-  // step alone moved that to the next ones: at P-bar = 5 and cfl 0.9 the rim went unstable in
-  // the second and third steps (A-bar +266 % over 30 ns), at P-bar = 10 and cfl 0.7 +23 %.
-  // The bound is taken over the elements the load acts on (a corner on a loaded node): the rest
-  // move under internal forces alone, which the stable step sees. Over every element it gave the
-  // same steps (P-bar 1-10, cfl 0.7-0.9) at ~20 % of the element loop's cost per step.
+  // While the load acts, every step also keeps the predicted area change of each element the load
+  // acts on within kLoadStepVolumeChange. The stable step sees the material's stiffness, not the
+  // load: the elastic estimate of the first step is taken at rest, and a load at full strength
+  // from t = 0 (the square pulse) would compress the loaded elements by ~20 % in the first step at
+  // cfl 0.5 and drive a grid-scale instability at the rim from cfl ~0.7 (P-bar = 1). Bounding the
+  // first step alone moved that to the next ones: at P-bar = 5 and cfl 0.9 the rim went unstable
+  // in the second and third steps (A-bar +266 % over 30 ns), at P-bar = 10 and cfl 0.7 +23 %.
+  // Those elements have a corner on a loaded node; the rest move under internal forces alone,
+  // which the stable step sees. Over every element the bound gave the same steps (P-bar 1-10, cfl
+  // 0.7-0.9) at ~20 % of the element loop's cost per step.
   const double pulse_end = problem.load.end_s();
   std::vector<int32_t> loaded_elements;
   {
