@@ -588,8 +588,8 @@ TEST(StableStep, LoadStepBoundKeepsThePredictedVolumeChangeWithinTheLimit) {
 // uniformly compressed to J = 0.7 (the default run's refocus at the centre compresses elements to
 // J ~ 0.67; K(J) is then 13 kappa and the initial-stress stiffness of a 3.9 GPa pressure enters),
 // for plain P1 and for the average nodal pressure element (beta = 0.01). The solver's step,
-// cfl sqrt(min_step_sq) at the default cfl = 0.7, must lie below 2 / omega_max. (No viscosity: the
-// damped limit is not covered here.) Measured on this disk: P1 0.46 of the limit, the nodal-
+// cfl sqrt(min_step_sq) at the default cfl = 0.7, must lie below 2 / omega_max. (No viscosity here:
+// the damped limit is the next test's.) Measured on this disk: P1 0.46 of the limit, the nodal-
 // pressure element 0.33 -- its nodal averaging lowers omega_max, which the element estimate h / c
 // does not see (0.41 on the 4k-66k disks, scripts/stable_step_margin.py).
 TEST(StableStep, LiesWithinTheCentralDifferenceLimitOfTheAssembledOperator) {
@@ -649,6 +649,85 @@ TEST(StableStep, LiesWithinTheCentralDifferenceLimitOfTheAssembledOperator) {
       EXPECT_LT(dt, limit) << (nodal ? "nodal pressure" : "P1") << ", J = " << j;
       std::printf("stable step, %s, J = %.1f: dt = %.3g s, limit 2/omega_max = %.3g s (%.2f)\n",
                   nodal ? "average nodal pressure" : "plain P1", j, dt, limit, dt / limit);
+    }
+}
+
+// The damped limit, for the scheme itself. With a viscosity the step's stability is that of the
+// integrator's map (simulation.cpp: velocity Verlet, i.e. central differences, whose viscous
+// stress sees the rate (F - F_prev) / dt over the step), linearised at rest:
+//   x_n+1 = 2 x_n - x_n-1 - dt^2 M^-1 (K x_n + C (x_n - x_n-1) / dt).
+// K and C are assembled from central differences of the kernel's forces: K with dt = 0 (no viscous
+// stress), K + C / tau after a step tau from rest. At the solver's step (cfl 0.7; the stable step
+// with eta in it) the map's spectral radius must stay at 1 (the free disk's rigid modes sit there,
+// as a Jordan block whose computed eigenvalues move by ~sqrt(round-off) ~ 1e-8). eta = 1, 30 and
+// 1000 Pa s on a 300-element disk put the viscous speed 4 eta / (3 rho h) at 0.1, 3 and 100 times
+// the sound speed: elastic-, mixed- and viscosity-limited steps. Measured: radius 1 + 1e-8 in all
+// six cases; P1 at eta = 1 goes unstable between 2.0 and 2.4 times the step (the elastic margin),
+// the others are still stable at 2.8 times (the viscous estimate h^2 rho / (2 nu_l), with the
+// smallest altitude for h, is that conservative). Without the viscous term in the step the radius
+// is 4.4-5.0 at eta = 30 and ~180 at eta = 1000.
+TEST(StableStep, KeepsTheDampedOneStepMapStableWithThePhysicalViscosity) {
+  const double cfl = 0.7;
+  for (const bool nodal : {false, true})
+    for (const double eta : {1.0, 30.0, 1000.0}) {
+      KernelFixture fx(mesh_disk_rings(90e-6, 300));
+      fx.p.viscosity = false;  // the physical viscosity alone (the artificial one is not linear)
+      fx.p.eta = eta;
+      const std::size_t nn = fx.mesh.node_count(), dofs = 2 * nn;
+      const std::vector<double> x(fx.mesh.x.begin(), fx.mesh.x.end()),
+          y(fx.mesh.y.begin(), fx.mesh.y.end());
+      // Forces at (px, py) after a step of length tau from rest (tau = 0: elastic only).
+      auto forces = [&](const std::vector<double>& px, const std::vector<double>& py, double tau,
+                        KernelTotals* totals) {
+        fx.s.reset_to_reference();  // F_prev = I: the step starts at rest
+        fx.p.dt = tau;
+        std::vector<double> f(dofs, 0.0);
+        if (nodal) {
+          const NodalRun r = nodal_forces(fx, px, py, 0.01);
+          for (std::size_t i = 0; i < nn; ++i) f[2 * i] = r.fx[i], f[2 * i + 1] = r.fy[i];
+          if (totals) *totals = r.totals;
+        } else {
+          std::vector<double> nfx(nn, 0.0), nfy(nn, 0.0);
+          KernelTotals t;
+          add_element_forces(fx.g, px, py, fx.p, 0, fx.g.size(), fx.s, t, nfx, nfy);
+          for (std::size_t i = 0; i < nn; ++i) f[2 * i] = nfx[i], f[2 * i + 1] = nfy[i];
+          if (totals) *totals = t;
+        }
+        return f;
+      };
+      KernelTotals at_rest;
+      forces(x, y, 0.0, &at_rest);
+      const double dt = cfl * std::sqrt(at_rest.min_step_sq);
+
+      const double h = 90e-6 / std::sqrt(fx.g.size() / 3.0), eps = 1e-7 * h;
+      Eigen::MatrixXd k(dofs, dofs), c(dofs, dofs);
+      for (std::size_t d = 0; d < dofs; ++d) {
+        std::vector<double> xp = x, yp = y, xm = x, ym = y;
+        (d % 2 ? yp : xp)[d / 2] += eps;
+        (d % 2 ? ym : xm)[d / 2] -= eps;
+        const std::vector<double> ep = forces(xp, yp, 0.0, nullptr),
+                                  em = forces(xm, ym, 0.0, nullptr);
+        const std::vector<double> vp = forces(xp, yp, dt, nullptr),
+                                  vm = forces(xm, ym, dt, nullptr);
+        for (std::size_t r = 0; r < dofs; ++r) {
+          k(r, d) = -(ep[r] - em[r]) / (2.0 * eps);
+          c(r, d) = -dt * ((vp[r] - vm[r]) - (ep[r] - em[r])) / (2.0 * eps);
+        }
+      }
+      const std::vector<double> v0 = reference_nodal_areas(fx.g, nn);
+      Eigen::VectorXd inv_mass(dofs);
+      for (std::size_t d = 0; d < dofs; ++d) inv_mass(d) = 1.0 / (fx.p.rho0 * v0[d / 2]);
+      // On (x_n, x_n-1), with Kh = dt^2 M^-1 K and Ch = dt M^-1 C (all blocks O(1)).
+      const Eigen::MatrixXd kh = dt * dt * (inv_mass.asDiagonal() * k),
+                            ch = dt * (inv_mass.asDiagonal() * c);
+      const Eigen::MatrixXd id = Eigen::MatrixXd::Identity(dofs, dofs);
+      Eigen::MatrixXd map(2 * dofs, 2 * dofs);
+      map << 2.0 * id - kh - ch, ch - id, id, Eigen::MatrixXd::Zero(dofs, dofs);
+      const double radius =
+          Eigen::EigenSolver<Eigen::MatrixXd>(map, false).eigenvalues().cwiseAbs().maxCoeff();
+      EXPECT_LT(radius, 1.0 + 1e-6) << (nodal ? "nodal pressure" : "P1") << ", eta " << eta;
+      std::printf("damped one-step map, %s, eta = %g Pa s: dt = %.3g s, spectral radius %.9f\n",
+                  nodal ? "average nodal pressure" : "plain P1", eta, dt, radius);
     }
 }
 
