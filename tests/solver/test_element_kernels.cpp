@@ -582,6 +582,26 @@ TEST(StableStep, LoadStepBoundKeepsThePredictedVolumeChangeWithinTheLimit) {
   EXPECT_EQ(alone.dt_s, one.dt_s);
 }
 
+// The kernel's nodal forces at (px, py) as one vector over the degrees of freedom (x0, y0, x1,
+// ...): plain P1, or the average nodal pressure element with beta = 0.01.
+std::vector<double> dof_forces(KernelFixture& fx, bool nodal, const std::vector<double>& px,
+                               const std::vector<double>& py, KernelTotals* totals) {
+  const std::size_t nn = fx.mesh.node_count();
+  std::vector<double> f(2 * nn, 0.0);
+  if (nodal) {
+    const NodalRun r = nodal_forces(fx, px, py, 0.01);
+    for (std::size_t i = 0; i < nn; ++i) f[2 * i] = r.fx[i], f[2 * i + 1] = r.fy[i];
+    if (totals) *totals = r.totals;
+  } else {
+    std::vector<double> nfx(nn, 0.0), nfy(nn, 0.0);
+    KernelTotals t;
+    add_element_forces(fx.g, px, py, fx.p, 0, fx.g.size(), fx.s, t, nfx, nfy);
+    for (std::size_t i = 0; i < nn; ++i) f[2 * i] = nfx[i], f[2 * i + 1] = nfy[i];
+    if (totals) *totals = t;
+  }
+  return f;
+}
+
 // Central differences are stable for dt <= 2 / omega_max, omega_max^2 the largest eigenvalue of
 // M^-1 K (lumped masses M, tangent stiffness K). K is assembled here column by column from central
 // differences of the kernel's own nodal forces, on a ring disk of ~300 elements at rest and
@@ -603,21 +623,7 @@ TEST(StableStep, LiesWithinTheCentralDifferenceLimitOfTheAssembledOperator) {
       for (std::size_t i = 0; i < nn; ++i)
         x[i] = stretch * fx.mesh.x[i], y[i] = stretch * fx.mesh.y[i];
       auto forces = [&](const std::vector<double>& px, const std::vector<double>& py,
-                        KernelTotals* totals) {
-        std::vector<double> f(dofs, 0.0);
-        if (nodal) {
-          const NodalRun r = nodal_forces(fx, px, py, 0.01);
-          for (std::size_t i = 0; i < nn; ++i) f[2 * i] = r.fx[i], f[2 * i + 1] = r.fy[i];
-          if (totals) *totals = r.totals;
-        } else {
-          std::vector<double> nfx(nn, 0.0), nfy(nn, 0.0);
-          KernelTotals t;
-          add_element_forces(fx.g, px, py, fx.p, 0, fx.g.size(), fx.s, t, nfx, nfy);
-          for (std::size_t i = 0; i < nn; ++i) f[2 * i] = nfx[i], f[2 * i + 1] = nfy[i];
-          if (totals) *totals = t;
-        }
-        return f;
-      };
+                        KernelTotals* totals) { return dof_forces(fx, nodal, px, py, totals); };
       KernelTotals at_state;
       forces(x, y, &at_state);
       ASSERT_LT(at_state.bad_element, 0);
@@ -681,19 +687,7 @@ TEST(StableStep, KeepsTheDampedOneStepMapStableWithThePhysicalViscosity) {
                         KernelTotals* totals) {
         fx.s.reset_to_reference();  // F_prev = I: the step starts at rest
         fx.p.dt = tau;
-        std::vector<double> f(dofs, 0.0);
-        if (nodal) {
-          const NodalRun r = nodal_forces(fx, px, py, 0.01);
-          for (std::size_t i = 0; i < nn; ++i) f[2 * i] = r.fx[i], f[2 * i + 1] = r.fy[i];
-          if (totals) *totals = r.totals;
-        } else {
-          std::vector<double> nfx(nn, 0.0), nfy(nn, 0.0);
-          KernelTotals t;
-          add_element_forces(fx.g, px, py, fx.p, 0, fx.g.size(), fx.s, t, nfx, nfy);
-          for (std::size_t i = 0; i < nn; ++i) f[2 * i] = nfx[i], f[2 * i + 1] = nfy[i];
-          if (totals) *totals = t;
-        }
-        return f;
+        return dof_forces(fx, nodal, px, py, totals);
       };
       KernelTotals at_rest;
       forces(x, y, 0.0, &at_rest);
