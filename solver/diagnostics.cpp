@@ -218,7 +218,7 @@ ElementStress Diagnostics::element_stress(const NodalView& nodes, const ElementS
       nodes.y[c] - nodes.y[a], {g.dm_inv_xx[e], g.dm_inv_xy[e], g.dm_inv_yx[e], g.dm_inv_yy[e]});
   const double n = mat.tait_n();
   // Average nodal pressure: the mean stress the kernel applied; plain P1: the element's own.
-  const double sm = !nodal_area0_.empty() && kernel.nodal_mean_stress != nullptr
+  const double sm = nodal_volumetric(kernel)
                         ? volumetric_mean_stress(kernel, e)
                         : cm::tait_mean_stress(mat.bulk_modulus_Pa, n, std::pow(cm::det(f), -n));
   return cauchy_stress(f, sm, mat.shear_modulus_Pa, s, e);
@@ -342,7 +342,7 @@ FieldFrame Diagnostics::frame(const NodalView& nodes, const ElementState& s,
   fr.hoop_stress.resize(ne), fr.von_mises.resize(ne), fr.aspect_ratio.resize(ne);
   const Material& mat = problem_.material;
   std::vector<double> volumetric;
-  if (!nodal_area0_.empty() && kernel.nodal_mean_stress != nullptr) {
+  if (nodal_volumetric(kernel)) {
     volumetric.resize(ne);
     for (std::size_t e = 0; e < ne; ++e) volumetric[e] = volumetric_mean_stress(kernel, e);
   }

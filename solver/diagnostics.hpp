@@ -54,6 +54,11 @@ class Diagnostics {
   FieldFrame frame(const NodalView& nodes, const ElementState& elements, const KernelView& kernel,
                    double t) const;
 
+  // Whether the elements' volumetric stress comes from the kernel's nodal state (average nodal
+  // pressure, with the kernel's arrays at hand) rather than from each element's own J.
+  bool nodal_volumetric(const KernelView& kernel) const {
+    return !nodal_area0_.empty() && kernel.nodal_mean_stress != nullptr;
+  }
   // The volumetric mean stress the kernel applied to element e (average nodal pressure only).
   double volumetric_mean_stress(const KernelView& kernel, std::size_t e) const;
   // Cauchy stress of element e; its mean stress under the element formulation (kernel: the

@@ -409,15 +409,18 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
       if (loaded[geometry.node0[e]] || loaded[geometry.node1[e]] || loaded[geometry.node2[e]])
         loaded_elements.push_back(static_cast<int32_t>(e));
   }
-  auto load_bounded_step = [&](double t_now, double dt_elastic) {
-    if (t_now >= pulse_end) return dt_elastic;
+  // The next step after an evaluation at time t: cfl times the elements' stable step, bounded
+  // while the load acts; the element that sets it is recorded in k (the history's dt_element).
+  auto next_step = [&](KernelTotals& k) {
+    const double dt_elastic = options.cfl * std::sqrt(k.min_step_sq);
+    if (t >= pulse_end) return dt_elastic;
     const StepBound bound = volume_change_step(geometry, loaded_elements, vx.data(), vy.data(),
                                                ax.data(), ay.data(), kLoadStepVolumeChange);
     if (!(bound.dt_s < dt_elastic)) return dt_elastic;
-    totals.min_step_element = bound.element;  // it sets the step (history's dt_element)
+    k.min_step_element = bound.element;
     return bound.dt_s;
   };
-  double dt_stable = load_bounded_step(t, options.cfl * std::sqrt(totals.min_step_sq));
+  double dt_stable = next_step(totals);
   result.min_dt_s = result.max_dt_s = dt_stable;
   // The smallest stable step since the last sample, and its element.
   double interval_min_dt = dt_stable;
@@ -495,7 +498,7 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
     }
     dissipated += totals.dissipation;
 
-    dt_stable = load_bounded_step(t, options.cfl * std::sqrt(totals.min_step_sq));
+    dt_stable = next_step(totals);
     result.min_dt_s = std::min(result.min_dt_s, dt_stable);
     result.max_dt_s = std::max(result.max_dt_s, dt_stable);
     if (dt_stable < interval_min_dt)
