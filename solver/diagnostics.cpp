@@ -196,17 +196,6 @@ double Diagnostics::volumetric_mean_stress(const KernelView& kernel, std::size_t
   return v;
 }
 
-double Diagnostics::stored_energy(const KernelView& kernel, const KernelTotals& totals) const {
-  const Material& mat = problem_.material;
-  const double kappa = mat.bulk_modulus_Pa;
-  if (nodal_area0_.empty() || kernel.nodal_j == nullptr) return totals.element_energy;
-  // sum_a V_a W_vol(J_a) + sum_e A_e W_stab(J_e, Jbar_e), from the kernel's state
-  return nodal_pressure_energy(geometry_, nodal_area0_, kernel.nodal_j, kernel.element_j, kappa,
-                               mat.tait_n(), 1.0 - problem_.element.element_weight,
-                               problem_.element.stabilization * kappa) +
-         totals.element_energy;
-}
-
 ElementStress Diagnostics::element_stress(const NodalView& nodes, const ElementState& s,
                                           const KernelView& kernel, std::size_t e) const {
   namespace cm = continuum;
@@ -233,7 +222,9 @@ void Diagnostics::sample(const NodalView& nodes, const ElementState& s, const Ke
   double kinetic = 0;
   for (std::size_t i = 0; i < nn; ++i)
     kinetic += 0.5 * nodes.mass[i] * (nodes.vx[i] * nodes.vx[i] + nodes.vy[i] * nodes.vy[i]);
-  const double elastic = stored_energy(kernel, totals);
+  // The stored energy of the whole body (J/m): the nodal passes' volumetric and stabilisation
+  // energy (average nodal pressure) plus the elements'.
+  const double elastic = totals.nodal_energy + totals.element_energy;
 
   // Rim: radial displacement, velocity and acceleration in the current polar frame.
   const std::size_t nr = rim_nodes_.size();

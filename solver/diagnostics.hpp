@@ -45,8 +45,8 @@ class Diagnostics {
 
   // Appends one sample at time t. Dissipation and external work are accumulated by the
   // integrator and passed in. totals: of the evaluation at these positions, with
-  // KernelParams::sample set (the elements' stored energy and largest aspect ratio, the element
-  // that set dt).
+  // KernelParams::sample set (the stored energy, the elements' and the nodal passes', the largest
+  // aspect ratio, the element that set dt).
   void sample(const NodalView& nodes, const ElementState& elements, const KernelView& kernel,
               const KernelTotals& totals, double t, double dt, double dissipated,
               double external_work, History& history) const;
@@ -67,10 +67,6 @@ class Diagnostics {
                                const KernelView& kernel, std::size_t e) const;
 
  private:
-  // The stored energy of the whole body (J/m): the nodes' volumetric and the stabilisation
-  // energy (average nodal pressure) plus the elements' (KernelTotals::element_energy).
-  double stored_energy(const KernelView& kernel, const KernelTotals& totals) const;
-
   const Problem& problem_;
   const ElementGeometry& geometry_;
   int modes_;

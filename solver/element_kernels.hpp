@@ -78,6 +78,9 @@ struct KernelTotals {
   // nodes'), J/m; and the largest longest-edge^2 / (2 area).
   double element_energy = 0;
   double max_aspect_ratio = 0;
+  // Not the element loop's: the nodal-pressure passes' share of the stored energy on a sample
+  // evaluation (StoredEnergySum, nodal_pressure.hpp; the integrator adds it to a step's totals).
+  double nodal_energy = 0;
 };
 
 // Evaluates elements [begin, end): updates their state and adds their nodal forces (acting on

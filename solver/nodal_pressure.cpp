@@ -64,25 +64,54 @@ __attribute__((target_clones("avx512f", "avx2", "default"))) void accumulate_nod
   }
 }
 
-__attribute__((target_clones("avx512f", "avx2", "default"))) void nodal_tait_state(
+namespace {
+// Pass 2 over nodes [begin, end), in blocks so that with kEnergy the stored energy is summed in
+// node order after each block's vectorised loop.
+template <bool kEnergy>
+inline __attribute__((always_inline)) void tait_state_blocks(
     double kappa, double n, const double* reference_area, const double* area, std::size_t begin,
-    std::size_t end, double* nodal_j, double* mean_stress, double* bulk_modulus) {
+    std::size_t end, double* nodal_j, double* mean_stress, double* bulk_modulus,
+    StoredEnergySum energy) {
+  alignas(64) double out[kBlock];
+  for (std::size_t block = begin; block < end; block += kBlock) {
+    const std::size_t count = std::min(kBlock, end - block);
 #pragma GCC ivdep
-  for (std::size_t i = begin; i < end; ++i) {
-    const double j = area[i] / reference_area[i];
-    const double j_minus_n = ::exp(-n * ::log(j));
-    nodal_j[i] = j;
-    mean_stress[i] = continuum::tait_mean_stress(kappa, n, j_minus_n);
-    bulk_modulus[i] = continuum::tait_bulk_modulus(kappa, j_minus_n);
+    for (std::size_t k = 0; k < count; ++k) {
+      const std::size_t i = block + k;
+      const double j = area[i] / reference_area[i];
+      const double j_minus_n = ::exp(-n * ::log(j));
+      nodal_j[i] = j;
+      mean_stress[i] = continuum::tait_mean_stress(kappa, n, j_minus_n);
+      bulk_modulus[i] = continuum::tait_bulk_modulus(kappa, j_minus_n);
+      if constexpr (kEnergy)
+        out[k] = energy.weight * reference_area[i] * continuum::tait_energy(kappa, n, j, j_minus_n);
+    }
+    if constexpr (kEnergy)
+      for (std::size_t k = 0; k < count; ++k) *energy.sum += out[k];
   }
 }
+}  // namespace
 
-__attribute__((target_clones("avx512f", "avx2", "default"))) void accumulate_stabilization(
+__attribute__((target_clones("avx512f", "avx2", "default"))) void nodal_tait_state(
+    double kappa, double n, const double* reference_area, const double* area, std::size_t begin,
+    std::size_t end, double* nodal_j, double* mean_stress, double* bulk_modulus,
+    StoredEnergySum energy) {
+  if (energy.sum)
+    tait_state_blocks<true>(kappa, n, reference_area, area, begin, end, nodal_j, mean_stress,
+                            bulk_modulus, energy);
+  else
+    tait_state_blocks<false>(kappa, n, reference_area, area, begin, end, nodal_j, mean_stress,
+                             bulk_modulus, energy);
+}
+
+namespace {
+template <bool kEnergy>
+inline __attribute__((always_inline)) void stabilization_blocks(
     const ElementGeometry& g, double beta_kappa, const double* nodal_j, const double* j_element,
-    std::size_t begin, std::size_t end, double* s_element, double* q_sum) {
+    std::size_t begin, std::size_t end, double* s_element, double* q_sum, StoredEnergySum energy) {
   const int32_t *n0 = g.node0.data(), *n1 = g.node1.data(), *n2 = g.node2.data();
   const double* area0 = g.area0.data();
-  alignas(64) double j_sum[kBlock], share[kBlock];
+  alignas(64) double j_sum[kBlock], share[kBlock], out[kBlock];
   for (std::size_t block = begin; block < end; block += kBlock) {
     const std::size_t count = std::min(kBlock, end - block);
     gather_corner_sums(g, nodal_j, block, count, j_sum);
@@ -92,70 +121,34 @@ __attribute__((target_clones("avx512f", "avx2", "default"))) void accumulate_sta
       const double rho = j_sum[k] / (3.0 * j_element[e]);  // Jbar_e / J_e
       s_element[e] = continuum::stabilization_element_stress(beta_kappa, rho);
       share[k] = area0[e] * continuum::stabilization_nodal_share(beta_kappa, rho) / 3.0;
+      if constexpr (kEnergy)
+        out[k] = energy.weight * area0[e] *
+                 continuum::stabilization_energy(beta_kappa, j_element[e], j_sum[k] / 3.0);
     }
     for (std::size_t k = 0; k < count; ++k) {
       const std::size_t e = block + k;
       q_sum[n0[e]] += share[k], q_sum[n1[e]] += share[k], q_sum[n2[e]] += share[k];
     }
+    if constexpr (kEnergy)
+      for (std::size_t k = 0; k < count; ++k) *energy.sum += out[k];
   }
+}
+}  // namespace
+
+__attribute__((target_clones("avx512f", "avx2", "default"))) void accumulate_stabilization(
+    const ElementGeometry& g, double beta_kappa, const double* nodal_j, const double* j_element,
+    std::size_t begin, std::size_t end, double* s_element, double* q_sum, StoredEnergySum energy) {
+  if (energy.sum)
+    stabilization_blocks<true>(g, beta_kappa, nodal_j, j_element, begin, end, s_element, q_sum,
+                               energy);
+  else
+    stabilization_blocks<false>(g, beta_kappa, nodal_j, j_element, begin, end, s_element, q_sum,
+                                energy);
 }
 
 void subtract_stabilization(const double* reference_area, const double* q_sum, std::size_t begin,
                             std::size_t end, double* mean_stress) {
   for (std::size_t i = begin; i < end; ++i) mean_stress[i] -= q_sum[i] / reference_area[i];
-}
-
-namespace {
-
-// w sum_a V_a W_vol(J_a) added to energy in node order (one libmvec log and exp per node).
-__attribute__((target_clones("avx512f", "avx2", "default"))) double add_nodal_volumetric_energy(
-    const double* reference_area, const double* nodal_j, std::size_t nodes, double kappa, double n,
-    double w, double energy) {
-  alignas(64) double out[kBlock];
-  for (std::size_t block = 0; block < nodes; block += kBlock) {
-    const std::size_t count = std::min(kBlock, nodes - block);
-#pragma GCC ivdep
-    for (std::size_t k = 0; k < count; ++k) {
-      const double j = nodal_j[block + k];
-      out[k] =
-          w * reference_area[block + k] * continuum::tait_energy(kappa, n, j, ::exp(-n * ::log(j)));
-    }
-    for (std::size_t k = 0; k < count; ++k) energy += out[k];
-  }
-  return energy;
-}
-
-// w sum_e A_e W_stab(J_e, Jbar_e) added to energy in element order; blocked like the passes above
-// so the arithmetic vectorises.
-__attribute__((target_clones("avx512f", "avx2", "default"))) double add_stabilization_energy(
-    const ElementGeometry& g, const double* nodal_j, const double* j_element, double beta_kappa,
-    double w, double energy) {
-  const double* area0 = g.area0.data();
-  alignas(64) double j_sum[kBlock], out[kBlock];
-  for (std::size_t block = 0; block < g.size(); block += kBlock) {
-    const std::size_t count = std::min(kBlock, g.size() - block);
-    gather_corner_sums(g, nodal_j, block, count, j_sum);
-#pragma GCC ivdep
-    for (std::size_t k = 0; k < count; ++k) {
-      const std::size_t e = block + k;
-      out[k] =
-          w * area0[e] * continuum::stabilization_energy(beta_kappa, j_element[e], j_sum[k] / 3.0);
-    }
-    for (std::size_t k = 0; k < count; ++k) energy += out[k];
-  }
-  return energy;
-}
-
-}  // namespace
-
-double nodal_pressure_energy(const ElementGeometry& g, const std::vector<double>& reference_area,
-                             const double* nodal_j, const double* j_element, double kappa, double n,
-                             double w_nodal, double beta_kappa) {
-  const double energy = add_nodal_volumetric_energy(reference_area.data(), nodal_j,
-                                                    reference_area.size(), kappa, n, w_nodal, 0.0);
-  return beta_kappa > 0
-             ? add_stabilization_energy(g, nodal_j, j_element, beta_kappa, w_nodal, energy)
-             : energy;
 }
 
 NodalPressureState nodal_pressure_state(const ElementGeometry& g,
@@ -168,14 +161,13 @@ NodalPressureState nodal_pressure_state(const ElementGeometry& g,
   std::vector<PackedNode> nodes(nn);
   pack_positions(x, y, 0, nn, nodes.data());
   accumulate_nodal_areas(g, nodes.data(), 0, ne, area.data(), j_element.data());
-  nodal_tait_state(kappa, n, reference_area.data(), area.data(), 0, nn, nodal_j.data(), sm.data(),
-                   k.data());
   NodalPressureState out;
   const double w_nodal = 1.0 - element_weight;
-  out.stored_energy = nodal_pressure_energy(g, reference_area, nodal_j.data(), j_element.data(),
-                                            kappa, n, w_nodal, beta * kappa);
+  const StoredEnergySum energy{w_nodal, &out.stored_energy};
+  nodal_tait_state(kappa, n, reference_area.data(), area.data(), 0, nn, nodal_j.data(), sm.data(),
+                   k.data(), energy);
   accumulate_stabilization(g, beta * kappa, nodal_j.data(), j_element.data(), 0, ne, s.data(),
-                           q.data());
+                           q.data(), beta > 0 ? energy : StoredEnergySum{});
   subtract_stabilization(reference_area.data(), q.data(), 0, nn, sm.data());
   out.element_mean_stress.resize(ne);
   for (std::size_t e = 0; e < ne; ++e) {

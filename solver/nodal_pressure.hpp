@@ -32,30 +32,33 @@ std::vector<double> reference_nodal_areas(const ElementGeometry& geometry, std::
 void accumulate_nodal_areas(const ElementGeometry& geometry, const PackedNode* nodes,
                             std::size_t begin, std::size_t end, double* area, double* j_element);
 
+// On a history sample passes 2 and 3 also sum the stored energy whose gradient the kernel's
+// forces are, w_nodal (sum_a V_a W_vol(J_a) + sum_e A_e W_stab(J_e, Jbar_e)) (J/m), from the
+// values they compute anyway: weight * V_a W_vol(J_a) added to *sum node by node, then weight *
+// A_e W_stab element by element, in index order (so one range gives one deterministic sum).
+// sum == nullptr: no energy (every other step).
+struct StoredEnergySum {
+  double weight = 0;  // w_nodal = 1 - element_weight
+  double* sum = nullptr;
+};
+
 // Pass 2 (nodes [begin, end)): J_a = area / reference_area, the Tait mean stress sigma_m(J_a)
 // and the tangent bulk modulus K(J_a) (both Pa).
 void nodal_tait_state(double kappa, double tait_n, const double* reference_area, const double* area,
                       std::size_t begin, std::size_t end, double* nodal_j, double* mean_stress,
-                      double* bulk_modulus);
+                      double* bulk_modulus, StoredEnergySum energy = {});
 
 // Pass 3 (elements [begin, end)): s_e = beta_kappa (1 - rho_e^2) / 2, and
 // A_e beta_kappa (1 - rho_e) / 3 added to each of the element's nodes' q_sum.
 void accumulate_stabilization(const ElementGeometry& geometry, double beta_kappa,
                               const double* nodal_j, const double* j_element, std::size_t begin,
-                              std::size_t end, double* s_element, double* q_sum);
+                              std::size_t end, double* s_element, double* q_sum,
+                              StoredEnergySum energy = {});
 
 // Pass 4 (nodes [begin, end)): mean_stress -= q_sum / reference_area, the nodal stress the
 // element kernel averages.
 void subtract_stabilization(const double* reference_area, const double* q_sum, std::size_t begin,
                             std::size_t end, double* mean_stress);
-
-// The stored volumetric + stabilisation energy of the body (J/m) from the passes' state:
-// w_nodal (sum_a V_a W_vol(J_a) + sum_e A_e W_stab(J_e, Jbar_e)) -- the energy whose gradient the
-// kernel's forces are, so the history's energy balance books exactly what the dynamics see.
-double nodal_pressure_energy(const ElementGeometry& geometry,
-                             const std::vector<double>& reference_area, const double* nodal_j,
-                             const double* j_element, double kappa, double tait_n, double w_nodal,
-                             double beta_kappa);
 
 // All four passes at once, for diagnostics (not the hot path): per element, the volumetric mean
 // stress the kernel applies (nodal mean + stabilisation; element_weight blends in the element's

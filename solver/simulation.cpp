@@ -254,6 +254,7 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
   // elements and adds its elements' forces into its own nodal arrays; those and the partial
   // totals are summed in thread order, so results depend only on the thread count.
   std::vector<KernelTotals> partial(threads);
+  const double w_nodal = 1.0 - problem.element.element_weight;
   std::vector<double> kernel_seconds(threads, 0.0);  // per thread: RunResult::kernel_time_s
   std::vector<std::vector<NodeForce>> thread_force(threads > 1 ? threads : 0);
   for (auto& f : thread_force) f.resize(nn);
@@ -286,11 +287,16 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
       if (threads == 1) std::fill(out, out + nn, 0.0);  // else cleared by sum_threads
       accumulate_nodal_areas(geometry, nodes.data(), e0, e1, out, j_element.data());
     };
+    // On a sample, passes 2 and 3 also sum the stored energy they see, per thread.
+    auto energy_sum = [&](int tid) {
+      return sample ? StoredEnergySum{w_nodal, &partial[tid].nodal_energy} : StoredEnergySum{};
+    };
     auto nodal_state = [&](int tid) {  // pass 2: J, mean stress, bulk modulus of the nodes
       const auto [n0, n1] = node_range(tid);
       if (threads > 1) sum_threads(thread_area, n0, n1, nodal_area.data());
+      partial[tid] = KernelTotals{};
       nodal_tait_state(params.kappa, params.tait_n, nodal_area0.data(), nodal_area.data(), n0, n1,
-                       nodal_j.data(), nodal_sm.data(), nodal_k.data());
+                       nodal_j.data(), nodal_sm.data(), nodal_k.data(), energy_sum(tid));
       if (beta_kappa <= 0) pack_nodal_state(nodal_sm.data(), nodal_k.data(), n0, n1, nodes.data());
     };
     auto stabilization = [&](int tid) {  // pass 3: element discrepancies, their nodal shares
@@ -298,7 +304,7 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
       double* out = threads > 1 ? thread_q[tid].data() : nodal_q.data();
       if (threads == 1) std::fill(out, out + nn, 0.0);  // else cleared by sum_threads
       accumulate_stabilization(geometry, beta_kappa, nodal_j.data(), j_element.data(), e0, e1,
-                               s_element.data(), out);
+                               s_element.data(), out, energy_sum(tid));
     };
     auto stabilized_state = [&](int tid) {  // pass 4: nodal stress less the patch mean of s
       const auto [n0, n1] = node_range(tid);
@@ -310,7 +316,7 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
       const auto [e0, e1] = element_range(tid);
       NodeForce* out = threads > 1 ? thread_force[tid].data() : force.data();
       if (threads == 1) std::fill(out, out + nn, NodeForce{});  // else cleared by correct
-      partial[tid] = KernelTotals{};
+      if (!nodal) partial[tid] = KernelTotals{};                // else cleared by pass 2
       compute_element_forces(geometry, nodes.data(), params, e0, e1, elements, partial[tid], out);
     };
     // The kernel's CPU time: the element loop and the nodal-pressure passes before it.
@@ -368,6 +374,7 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
         total.min_step_sq = k.min_step_sq, total.min_step_element = k.min_step_element;
       total.dissipation += k.dissipation;
       total.element_energy += k.element_energy;
+      total.nodal_energy += k.nodal_energy;
       total.max_aspect_ratio = std::max(total.max_aspect_ratio, k.max_aspect_ratio);
       if (total.bad_element < 0 && k.bad_element >= 0)
         total.bad_element = k.bad_element, total.bad_j = k.bad_j;
@@ -425,10 +432,10 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
   // The smallest stable step since the last sample, and its element.
   double interval_min_dt = dt_stable;
   int64_t interval_min_element = totals.min_step_element;
-  // Whether the last evaluation summed the elements' energy and aspect ratio (a sample was due
-  // after it). A sample that was not -- the last state of a run stopped by max_steps or a
-  // cancellation -- gets them from one more pass over a copy of the element state (the sums
-  // depend on the positions alone).
+  // Whether the last evaluation summed the stored energy and the elements' aspect ratio (a sample
+  // was due after it). A sample that was not -- the last state of a run stopped by max_steps or a
+  // cancellation -- gets them from one more pass over a copy of the element state and the nodal
+  // passes (the sums depend on the positions alone).
   bool totals_sampled = true;
   auto sample_history = [&] {
     if (!totals_sampled) {
@@ -441,6 +448,12 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
                              unused.data());
       totals.element_energy = sums.element_energy;
       totals.max_aspect_ratio = sums.max_aspect_ratio;
+      if (nodal)
+        totals.nodal_energy =
+            nodal_pressure_state(geometry, nodal_area0, params.kappa, params.tait_n,
+                                 problem.element.element_weight, problem.element.stabilization,
+                                 x.data(), y.data())
+                .stored_energy;
       totals_sampled = true;
     }
     diagnostics.sample(view, elements, kernel_view, totals, t, dt_stable, dissipated, external_work,
