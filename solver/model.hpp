@@ -102,6 +102,9 @@ struct SolverOptions {
   int modes = 64;                    // Fourier modes 0..modes of the rim radial displacement
   int threads = 1;                   // element-loop threads
   int64_t max_steps = 0;             // 0 = unlimited
+  // Fail with FailureKind::kMeshDistortion at the first history sample whose largest element
+  // aspect ratio exceeds this; 0 = no limit.
+  double max_aspect_ratio = 0;
 };
 
 // Origin and R0 of the diagnostics' polar frame: the Problem's own when reference_radius_m > 0,

@@ -462,7 +462,24 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
     result.history.min_dt_element.push_back(static_cast<double>(interval_min_element));
     interval_min_dt = std::numeric_limits<double>::infinity(), interval_min_element = -1;
   };
+  // Whether the sample just taken has an element beyond the mesh's regime (max_aspect_ratio): the
+  // run stops there as failed, with its history and a last frame kept.
+  auto mesh_distorted = [&] {
+    const double aspect = result.history.max_aspect_ratio.back();
+    if (!(options.max_aspect_ratio > 0 && aspect > options.max_aspect_ratio)) return false;
+    result.status = RunStatus::kFailed;
+    result.failure = FailureKind::kMeshDistortion;
+    char buf[320];
+    std::snprintf(buf, sizeof buf,
+                  "mesh distortion: an element's aspect ratio reached %.4g (run.max_aspect_ratio = "
+                  "%.4g) at t = %.6g ns (step %lld): the mesh no longer follows the flow, so the "
+                  "run stops here with its history so far (a limit of 0 runs on regardless)",
+                  aspect, options.max_aspect_ratio, t * 1e9, static_cast<long long>(steps));
+    result.error = buf;
+    return true;
+  };
   sample_history();
+  if (mesh_distorted()) return result;
   if (options.output_interval_s > 0 && control.on_frame) {
     control.on_frame(diagnostics.frame(view, elements, kernel_view, t));
     ++result.frames_written;
@@ -536,6 +553,7 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
         result.error = "non-finite kinetic energy at t = " + std::to_string(t * 1e9) + " ns";
         break;
       }
+      if (mesh_distorted()) break;
     }
     if (options.output_interval_s > 0 && t >= schedule.next_output_time() - tiny) {
       while (schedule.next_output_time() <= t + tiny) ++schedule.next_output;
@@ -554,8 +572,11 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
   // The final state is always in the history and (when frames are on) in the last frame.
   if (result.history.time.back() < t - tiny && result.status != RunStatus::kFailed)
     sample_history();
+  // (A distorted mesh is a valid state: its frame shows where the mesh left the flow.)
+  const bool state_valid =
+      result.status != RunStatus::kFailed || result.failure == FailureKind::kMeshDistortion;
   if (options.output_interval_s > 0 && control.on_frame && last_frame_time < t - tiny &&
-      steps > 0 && result.status != RunStatus::kFailed) {
+      steps > 0 && state_valid) {
     control.on_frame(diagnostics.frame(view, elements, kernel_view, t));
     ++result.frames_written;
   }

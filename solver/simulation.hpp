@@ -78,7 +78,13 @@ struct Progress {
 enum class RunStatus { kCompleted, kCancelled, kFailed };
 
 // Why a kFailed run stopped, for callers that act on the cause (the daemon's job reasons).
-enum class FailureKind { kNone, kElementInversion, kNonFinite, kTimeStepCollapse };
+enum class FailureKind {
+  kNone,
+  kElementInversion,
+  kNonFinite,
+  kTimeStepCollapse,
+  kMeshDistortion  // SolverOptions::max_aspect_ratio exceeded
+};
 
 struct RunResult {
   RunStatus status = RunStatus::kCompleted;

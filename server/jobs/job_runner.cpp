@@ -169,6 +169,8 @@ std::string failure_reason(FailureKind kind) {
       return reason::kNonFinite;
     case FailureKind::kTimeStepCollapse:
       return reason::kTimeStepCollapse;
+    case FailureKind::kMeshDistortion:
+      return reason::kMeshDistortion;
     case FailureKind::kNone:
       break;
   }

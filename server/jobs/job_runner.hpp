@@ -78,8 +78,8 @@ class JobRunner {
   std::unique_ptr<MeshCache> mesh_cache_;  // null: disabled or unusable
 };
 
-// FAILED reason for a solver failure: ELEMENT_INVERSION, NON_FINITE, TIME_STEP_COLLAPSE or
-// INTERNAL.
+// FAILED reason for a solver failure: ELEMENT_INVERSION, NON_FINITE, TIME_STEP_COLLAPSE,
+// MESH_DISTORTION or INTERNAL.
 std::string failure_reason(FailureKind kind);
 
 // Mode amplitudes of a run decimated to about one sample per `interval_s`, modes

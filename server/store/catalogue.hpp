@@ -36,6 +36,7 @@ namespace reason {
 inline constexpr const char* kElementInversion = "ELEMENT_INVERSION";
 inline constexpr const char* kNonFinite = "NON_FINITE";
 inline constexpr const char* kTimeStepCollapse = "TIME_STEP_COLLAPSE";
+inline constexpr const char* kMeshDistortion = "MESH_DISTORTION";
 inline constexpr const char* kWallTimeExceeded = "WALL_TIME_EXCEEDED";
 inline constexpr const char* kDiskFull = "DISK_FULL";
 inline constexpr const char* kInterrupted = "INTERRUPTED";

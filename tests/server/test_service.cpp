@@ -413,6 +413,7 @@ TEST(JobRunner, MapsSolverFailuresToReasons) {
   EXPECT_EQ(failure_reason(FailureKind::kElementInversion), "ELEMENT_INVERSION");
   EXPECT_EQ(failure_reason(FailureKind::kNonFinite), "NON_FINITE");
   EXPECT_EQ(failure_reason(FailureKind::kTimeStepCollapse), "TIME_STEP_COLLAPSE");
+  EXPECT_EQ(failure_reason(FailureKind::kMeshDistortion), "MESH_DISTORTION");
   EXPECT_EQ(failure_reason(FailureKind::kNone), "INTERNAL");
 }
 

@@ -294,10 +294,12 @@ TEST(LateTimeVerification, DefaultRunIsRobustAndItsAbarConvergesTo800ns) {
 // With the quadratic stabilisation (finite energy to crush an element at fixed nodal areas; beta
 // = 0.02) rim elements fell to J = 0.04 by 375 ns and 0.005 by 400 ns, and the step to 0.4 ps;
 // with the barrier form the element setting the step keeps J >= 0.20 (measured; 0.30 with beta =
-// 0.02). Asserted: >= 0.1.
+// 0.02). Asserted: >= 0.1. The run goes past the default stop at aspect ratio 100 (389 ns here):
+// what is tested is how the element holds up beyond it.
 TEST(LateTimeVerification, StrongPulseDoesNotCrushRimElements) {
   const RunResult r = run_json(R"({"load":{"pressure":4e9},
-                                   "run":{"end_time":4e-7,"output_interval":0}})");
+                                   "run":{"end_time":4e-7,"output_interval":0,
+                                          "max_aspect_ratio":0}})");
   ASSERT_EQ(r.status, RunStatus::kCompleted) << r.error;
   const History& h = r.history;
   double smallest_j = 1e300, smallest_dt = 1;

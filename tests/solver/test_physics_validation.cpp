@@ -442,6 +442,62 @@ TEST(PhysicsValidation, TheFinalSampleHasTheStoredEnergyAndAspectRatio) {
     }
 }
 
+// run.max_aspect_ratio stops a run at the first history sample whose largest aspect ratio exceeds
+// it: failed (kMeshDistortion, the error naming the field), the history identical to the unlimited
+// run's up to and including that sample, and a last frame there. A limit the run only reaches
+// does not stop it. (1,000 elements to 60 ns: the largest aspect ratio moves between ~2.3 and
+// ~2.8, not monotonically, so the limit halfway is first passed at a sample inside the run.)
+TEST(PhysicsValidation, MaxAspectRatioStopsTheRunAtTheFirstSampleBeyondIt) {
+  auto run = [](double limit, double* last_frame_time) {
+    char exact[32];  // round-trips the double
+    std::snprintf(exact, sizeof exact, "%.17g", limit);
+    const v1::RunSpec spec =
+        spec_from(R"({"geometry":{"target_elements":1000},"run":{"end_time":6e-8,)"
+                  R"("output_interval":2e-8,"max_aspect_ratio":)" +
+                  std::string(exact) + "}}");
+    RunControl control;
+    control.on_frame = [&](const FieldFrame& f) { *last_frame_time = f.time_s; };
+    return run_simulation(make_problem(spec), make_options(spec), control);
+  };
+  double free_frame = 0, stopped_frame = 0, reached_frame = 0;
+  const RunResult free = run(0, &free_frame);
+  ASSERT_EQ(free.status, RunStatus::kCompleted) << free.error;
+  const std::vector<double>& aspect = free.history.max_aspect_ratio;
+  const double largest = *std::max_element(aspect.begin(), aspect.end());
+  const double limit = 0.5 * (aspect.front() + largest);
+  const std::size_t first =
+      std::find_if(aspect.begin(), aspect.end(), [&](double a) { return a > limit; }) -
+      aspect.begin();
+  ASSERT_GT(first, 1u);
+  ASSERT_LT(first + 5, aspect.size());  // well inside the run
+
+  const RunResult stopped = run(limit, &stopped_frame);
+  std::printf("aspect ratio %.3f at t = 0, largest %.3f; limit %.3f first passed at %.1f ns\n",
+              aspect.front(), largest, limit, free.history.time[first] * 1e9);
+  EXPECT_EQ(stopped.status, RunStatus::kFailed);
+  EXPECT_EQ(stopped.failure, FailureKind::kMeshDistortion);
+  EXPECT_NE(stopped.error.find("run.max_aspect_ratio"), std::string::npos) << stopped.error;
+  ASSERT_EQ(stopped.history.size(), first + 1);
+  for (std::size_t k = 0; k <= first; ++k) {
+    EXPECT_EQ(stopped.history.time[k], free.history.time[k]);
+    EXPECT_EQ(stopped.history.max_aspect_ratio[k], aspect[k]);
+    EXPECT_EQ(stopped.history.kinetic_energy[k], free.history.kinetic_energy[k]);
+  }
+  EXPECT_EQ(stopped_frame, free.history.time[first]);  // the distorted state, for a look at it
+
+  // A mesh beyond the limit from the start: stopped at t = 0.
+  double unused = 0;
+  const RunResult at_start = run(0.5 * (1.1547 + aspect.front()), &unused);
+  EXPECT_EQ(at_start.failure, FailureKind::kMeshDistortion);
+  EXPECT_EQ(at_start.steps, 0);
+  EXPECT_EQ(at_start.history.size(), 1u);
+
+  // A limit reached but not exceeded.
+  const RunResult reached = run(largest, &reached_frame);
+  EXPECT_EQ(reached.status, RunStatus::kCompleted) << reached.error;
+  EXPECT_EQ(reached.history.size(), free.history.size());
+}
+
 TEST(PhysicsValidation, CancellationStopsTheRun) {
   std::atomic<bool> cancel{false};
   RunControl control;

@@ -35,6 +35,8 @@ TEST(RunSpec, DefaultsAreTheThesisBaseline) {
   EXPECT_DOUBLE_EQ(s.run().history_interval(), 1e-9);
   EXPECT_EQ(s.run().modes(), 64);
   EXPECT_EQ(s.run().threads(), 1);
+  EXPECT_DOUBLE_EQ(s.run().max_aspect_ratio(), 100);  // not the thesis's: it had no such stop
+  EXPECT_DOUBLE_EQ(make_options(s).max_aspect_ratio, 100);
   // Explicit values survive; the canonical JSON has every field and parses back equal.
   const auto back = parse_spec_json(spec_to_json(s));
   EXPECT_EQ(back.SerializeAsString(), s.SerializeAsString());
@@ -61,6 +63,11 @@ TEST(RunSpec, InvalidFieldsAreNamed) {
   EXPECT_EQ(error_field(R"({"run":{"end_time":-1}})"), "run.end_time");
   EXPECT_EQ(error_field(R"({"run":{"threads":0}})"), "run.threads");
   EXPECT_EQ(error_field(R"({"run":{"modes":-2}})"), "run.modes");
+  EXPECT_EQ(error_field(R"({"run":{"max_aspect_ratio":-1}})"), "run.max_aspect_ratio");
+  EXPECT_EQ(error_field(R"({"run":{"max_aspect_ratio":1.15}})"), "run.max_aspect_ratio");
+  EXPECT_EQ(error_field(R"({"run":{"max_aspect_ratio":"Infinity"}})"), "run.max_aspect_ratio");
+  EXPECT_EQ(error_field(R"({"run":{"max_aspect_ratio":0}})"), "(accepted)");  // no limit
+  EXPECT_EQ(error_field(R"({"run":{"max_aspect_ratio":1.16}})"), "(accepted)");
   EXPECT_EQ(error_field(R"({"load":{"duration":0}})"), "load.duration");
   EXPECT_EQ(error_field(R"({"viscosity":{"c1":-0.5}})"), "viscosity.c1");
   EXPECT_EQ(error_field(R"({"geometry":{"rounded_square":{"side":1e-4,"corner_radius":6e-5}}})"),
