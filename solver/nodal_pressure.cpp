@@ -105,6 +105,8 @@ __attribute__((target_clones("avx512f", "avx2", "default"))) void nodal_tait_sta
 }
 
 namespace {
+// Pass 3 over elements [begin, end); with kEnergy the stabilisation energy is summed in element
+// order after each block's vectorised loop.
 template <bool kEnergy>
 inline __attribute__((always_inline)) void stabilization_blocks(
     const ElementGeometry& g, double beta_kappa, const double* nodal_j, const double* j_element,
