@@ -7,7 +7,6 @@
 #include <unordered_set>
 
 #include "continuum.hpp"
-#include "nodal_pressure.hpp"
 #include "vector_math.hpp"
 
 namespace softshock {
@@ -119,7 +118,10 @@ PolarFrame polar_frame(const Problem& problem) {
 }
 
 Diagnostics::Diagnostics(const Problem& problem, const ElementGeometry& geometry, int modes)
-    : problem_(problem), geometry_(geometry), modes_(modes) {
+    : problem_(problem),
+      geometry_(geometry),
+      modes_(modes),
+      nodal_pressure_(problem.element.formulation == ElementFormulation::kAverageNodalPressure) {
   const Mesh& mesh = problem.mesh;
   rim_nodes_ = mesh.boundary_nodes;
   const PolarFrame frame = polar_frame(problem);
@@ -167,9 +169,6 @@ Diagnostics::Diagnostics(const Problem& problem, const ElementGeometry& geometry
 
   on_rim_node_.assign(mesh.node_count(), 0);
   for (int32_t i : rim_nodes_) on_rim_node_[i] = 1;
-  if (problem.element.formulation == ElementFormulation::kAverageNodalPressure) {
-    nodal_area0_ = reference_nodal_areas(geometry, mesh.node_count());
-  }
 
   std::unordered_set<int64_t> rim_edges;
   for (std::size_t k = 0; k < nr; ++k)

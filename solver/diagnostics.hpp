@@ -57,7 +57,7 @@ class Diagnostics {
   // Whether the elements' volumetric stress comes from the kernel's nodal state (average nodal
   // pressure, with the kernel's arrays at hand) rather than from each element's own J.
   bool nodal_volumetric(const KernelView& kernel) const {
-    return !nodal_area0_.empty() && kernel.nodal_mean_stress != nullptr;
+    return nodal_pressure_ && kernel.nodal_mean_stress != nullptr;
   }
   // The volumetric mean stress the kernel applied to element e (average nodal pressure only).
   double volumetric_mean_stress(const KernelView& kernel, std::size_t e) const;
@@ -79,7 +79,8 @@ class Diagnostics {
   std::vector<int32_t> center_elements_;
   std::vector<int32_t> rim_elements_;  // elements with an edge on the outer boundary
   std::vector<uint8_t> on_rim_node_;   // 1 for nodes of the outer boundary loop
-  std::vector<double> nodal_area0_;    // reference nodal areas (average nodal pressure only)
+  // The average nodal pressure element (the kernel's nodal state carries its volumetric stress).
+  bool nodal_pressure_ = false;
 };
 
 }  // namespace softshock
