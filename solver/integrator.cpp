@@ -53,4 +53,15 @@ StepBound volume_change_step(const ElementGeometry& g, std::span<const int32_t> 
   return bound;
 }
 
+std::vector<int32_t> elements_on_nodes(const ElementGeometry& g, std::span<const int32_t> nodes,
+                                       std::size_t node_count) {
+  std::vector<uint8_t> marked(node_count, 0);
+  for (const int32_t i : nodes) marked[i] = 1;
+  std::vector<int32_t> out;
+  for (std::size_t e = 0; e < g.size(); ++e)
+    if (marked[g.node0[e]] || marked[g.node1[e]] || marked[g.node2[e]])
+      out.push_back(static_cast<int32_t>(e));
+  return out;
+}
+
 }  // namespace softshock

@@ -5,6 +5,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <span>
+#include <vector>
 
 #include "element_kernels.hpp"
 #include "node_layout.hpp"
@@ -35,9 +36,14 @@ struct StepBound {
   double dt_s;      // +inf when nothing moves
   int64_t element;  // the element that sets it (-1 when nothing moves)
 };
-// Over the given elements (ascending), e.g. those the load acts on.
+// Over the given elements (ascending), e.g. those the load acts on (elements_on_nodes).
 StepBound volume_change_step(const ElementGeometry& geometry, std::span<const int32_t> elements,
                              const double* vx, const double* vy, const double* ax, const double* ay,
                              double max_volume_change);
+
+// The elements with a corner on any of the given nodes, ascending (nodes: indices below
+// node_count).
+std::vector<int32_t> elements_on_nodes(const ElementGeometry& geometry,
+                                       std::span<const int32_t> nodes, std::size_t node_count);
 
 }  // namespace softshock

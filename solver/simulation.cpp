@@ -260,6 +260,7 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
   for (auto& f : thread_force) f.resize(nn);
   auto evaluate = [&](double t, double dt, bool sample) {
     params.dt = dt, params.sample = sample;
+    std::fill(partial.begin(), partial.end(), KernelTotals{});  // each thread's sums of this step
     auto node_range = [&](int tid) {
       return std::pair<std::size_t, std::size_t>{nn * tid / threads, nn * (tid + 1) / threads};
     };
@@ -294,7 +295,6 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
     auto nodal_state = [&](int tid) {  // pass 2: J, mean stress, bulk modulus of the nodes
       const auto [n0, n1] = node_range(tid);
       if (threads > 1) sum_threads(thread_area, n0, n1, nodal_area.data());
-      partial[tid] = KernelTotals{};
       nodal_tait_state(params.kappa, params.tait_n, nodal_area0.data(), nodal_area.data(), n0, n1,
                        nodal_j.data(), nodal_sm.data(), nodal_k.data(), energy_sum(tid));
       if (beta_kappa <= 0) pack_nodal_state(nodal_sm.data(), nodal_k.data(), n0, n1, nodes.data());
@@ -316,7 +316,6 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
       const auto [e0, e1] = element_range(tid);
       NodeForce* out = threads > 1 ? thread_force[tid].data() : force.data();
       if (threads == 1) std::fill(out, out + nn, NodeForce{});  // else cleared by correct
-      if (!nodal) partial[tid] = KernelTotals{};                // else cleared by pass 2
       compute_element_forces(geometry, nodes.data(), params, e0, e1, elements, partial[tid], out);
     };
     // The kernel's CPU time: the element loop and the nodal-pressure passes before it.
@@ -408,14 +407,7 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
   // which the stable step sees. Over every element the bound gave the same steps (P-bar 1-10, cfl
   // 0.7-0.9) at ~20 % of the element loop's cost per step.
   const double pulse_end = problem.load.end_s();
-  std::vector<int32_t> loaded_elements;
-  {
-    std::vector<uint8_t> loaded(nn, 0);
-    for (const int32_t i : loaded_nodes) loaded[i] = 1;
-    for (std::size_t e = 0; e < ne; ++e)
-      if (loaded[geometry.node0[e]] || loaded[geometry.node1[e]] || loaded[geometry.node2[e]])
-        loaded_elements.push_back(static_cast<int32_t>(e));
-  }
+  const std::vector<int32_t> loaded_elements = elements_on_nodes(geometry, loaded_nodes, nn);
   // The next step after an evaluation at time t: cfl times the elements' stable step, bounded
   // while the load acts; the element that sets it is recorded in k (the history's dt_element).
   auto next_step = [&](KernelTotals& k) {
