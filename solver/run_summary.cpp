@@ -75,6 +75,7 @@ RunSummary summarize(const Problem& problem, const RunResult& r) {
              : r.status == RunStatus::kCancelled ? "cancelled"
                                                  : "failed";
   s.error = r.error;
+  s.failure = failure_name(r.failure);
   const std::size_t n = h.size();
   if (n == 0) return s;
   s.end_time_s = h.time.back();
@@ -146,6 +147,7 @@ std::string summary_to_json(const RunSummary& s) {
     }
     o << ",\"error\":\"" << e << "\"";
   }
+  if (!s.failure.empty()) o << ",\"failure\":\"" << s.failure << "\"";
   o << ",\"solver_revision\":" << s.solver_revision << ",\"elements\":" << s.elements
     << ",\"nodes\":" << s.nodes << ",\"steps\":" << s.steps
     << ",\"wall_time_s\":" << number(s.wall_time_s) << ",\"end_time_s\":" << number(s.end_time_s)

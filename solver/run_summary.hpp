@@ -53,6 +53,7 @@ struct RunSummary {
   double min_dt_s = 0, max_dt_s = 0;
   std::string status;  // "completed", "cancelled", "failed"
   std::string error;
+  std::string failure;  // "failed": its cause (failure_name, e.g. "MESH_DISTORTION"); else empty
   // Where the time went (docs/performance.md). kernel_time_s: the element loop and the nodal
   // passes before it (on the evaluations a history sample follows, the loop also sums the
   // elements' stored energy and largest aspect ratio), CPU time measured in the run (robust to

@@ -126,6 +126,26 @@ double thread_cpu_seconds() {
   return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
 }
 
+}  // namespace
+
+const char* failure_name(FailureKind kind) {
+  switch (kind) {
+    case FailureKind::kElementInversion:
+      return "ELEMENT_INVERSION";
+    case FailureKind::kNonFinite:
+      return "NON_FINITE";
+    case FailureKind::kTimeStepCollapse:
+      return "TIME_STEP_COLLAPSE";
+    case FailureKind::kMeshDistortion:
+      return "MESH_DISTORTION";
+    case FailureKind::kNone:
+      break;
+  }
+  return "";
+}
+
+namespace {
+
 FailureKind failure_kind(const KernelTotals& k) {
   return std::isfinite(k.bad_j) ? FailureKind::kElementInversion : FailureKind::kNonFinite;
 }

@@ -85,6 +85,10 @@ enum class FailureKind {
   kTimeStepCollapse,
   kMeshDistortion  // SolverOptions::max_aspect_ratio exceeded
 };
+// The cause's name as the run summary records it ("ELEMENT_INVERSION", "NON_FINITE",
+// "TIME_STEP_COLLAPSE", "MESH_DISTORTION"; "" for kNone): the daemon's job reasons, so that a run
+// on a cluster, read back from its result file, fails with the same reason as a local one.
+const char* failure_name(FailureKind kind);
 
 struct RunResult {
   RunStatus status = RunStatus::kCompleted;

@@ -90,6 +90,7 @@ RunSummary parse_summary_json(const std::string& json) {
   };
   r.status = text("status");
   r.error = text("error");
+  r.failure = text("failure");
   r.elements = json_count<std::size_t>(s, "elements");
   r.nodes = json_count<std::size_t>(s, "nodes");
   r.steps = json_count<int64_t>(s, "steps");
@@ -175,6 +176,14 @@ std::string failure_reason(FailureKind kind) {
       break;
   }
   return reason::kInternal;
+}
+
+std::string failure_reason(const std::string& summary_failure) {
+  for (const FailureKind kind : {FailureKind::kElementInversion, FailureKind::kNonFinite,
+                                 FailureKind::kTimeStepCollapse, FailureKind::kMeshDistortion}) {
+    if (summary_failure == failure_name(kind)) return failure_reason(kind);
+  }
+  return "";
 }
 
 StoredSummary make_stored_summary(const RunSummary& summary, const History& history,

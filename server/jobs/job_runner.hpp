@@ -81,6 +81,9 @@ class JobRunner {
 // FAILED reason for a solver failure: ELEMENT_INVERSION, NON_FINITE, TIME_STEP_COLLAPSE,
 // MESH_DISTORTION or INTERNAL.
 std::string failure_reason(FailureKind kind);
+// The same from a run summary's `failure` (a cluster run's, read back from its result file): one
+// of the four solver reasons, or "" when it names none of them (absent, or unknown to this build).
+std::string failure_reason(const std::string& summary_failure);
 
 // Mode amplitudes of a run decimated to about one sample per `interval_s`, modes
 // 0..min(max_modes, M+1)-1, and A-bar(t) decimated to at most ~max_abar_samples, for the

@@ -759,6 +759,12 @@ void SlurmExecutor::finish(const std::string& id, const SlurmOutcome& outcome,
     why = tracked.cancel == StopReason::kUser ? reason::kCancelledByUser : "SLURM_CANCELLED";
     error = "Slurm job " + tracked.slurm_id + " cancelled";
   } else if (state == JobState::kFailed && error.empty()) {
+    // A solver that stopped for a physical cause says which in its result's summary: the job
+    // fails with the reason a local run gives (MESH_DISTORTION, ...), Slurm's word stays in error.
+    if (stored && stored->summary.status == "failed") {
+      if (std::string solver = failure_reason(stored->summary.failure); !solver.empty())
+        why = solver;
+    }
     error = "Slurm job " + tracked.slurm_id + " " + observed.state;
     if (!observed.detail.empty() && observed.detail != "None")
       error += " (" + observed.detail + ")";

@@ -54,7 +54,8 @@ struct SlurmOutcome {
 // PENDING (and requeue/hold states) → waiting (QUEUED); RUNNING, COMPLETING, SUSPENDED… →
 // running; COMPLETED → SUCCEEDED (once the result is verified); CANCELLED → CANCELLED; TIMEOUT
 // (the wall limit) → FAILED WALL_TIME_EXCEEDED; FAILED, OUT_OF_MEMORY, NODE_FAIL, BOOT_FAIL,
-// DEADLINE, PREEMPTED → FAILED with reason SLURM_<STATE>. Accepts sacct's "CANCELLED by 0" form.
+// DEADLINE, PREEMPTED → FAILED with reason SLURM_<STATE> (the executor then takes a solver's own
+// cause from its result's summary where it names one). Accepts sacct's "CANCELLED by 0" form.
 SlurmOutcome map_slurm_state(const std::string& slurm_state);
 
 // The job id of `sbatch --parsable` output ("123" or "123;cluster"); empty if there is none.

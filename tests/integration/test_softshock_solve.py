@@ -159,11 +159,17 @@ class SoftshockSolve(unittest.TestCase):
         self.assertEqual(r.returncode, 1)
         self.assertIn("element inversion", r.stderr)
         self.assertIn("in element", r.stderr)
+        # The cause by name, the daemon's job reason (a Slurm job reads it from the result file).
+        self.assertEqual(json.loads(r.stdout)["failure"], "ELEMENT_INVERSION")
         with h5py.File(os.path.join(self.out, "result.h5"), "r") as h5:
             self.assertEqual(int(h5.attrs["complete"]), 0)
             error = h5.attrs["error"]
             error = error.decode() if isinstance(error, bytes) else str(error)
             self.assertIn("element inversion", error)
+            summary = h5.attrs["summary"]
+            summary = json.loads(summary.decode() if isinstance(summary, bytes) else summary)
+            self.assertEqual(summary["status"], "failed")
+            self.assertEqual(summary["failure"], "ELEMENT_INVERSION")
 
     def test_usage_errors_exit_2(self):
         r = subprocess.run([SOLVE, "--spec"], capture_output=True, text=True)

@@ -415,6 +415,13 @@ TEST(JobRunner, MapsSolverFailuresToReasons) {
   EXPECT_EQ(failure_reason(FailureKind::kTimeStepCollapse), "TIME_STEP_COLLAPSE");
   EXPECT_EQ(failure_reason(FailureKind::kMeshDistortion), "MESH_DISTORTION");
   EXPECT_EQ(failure_reason(FailureKind::kNone), "INTERNAL");
+  // A cluster run's cause comes back by name (its result's summary): the same reasons.
+  for (const FailureKind kind : {FailureKind::kElementInversion, FailureKind::kNonFinite,
+                                 FailureKind::kTimeStepCollapse, FailureKind::kMeshDistortion})
+    EXPECT_EQ(failure_reason(failure_name(kind)), failure_reason(kind));
+  EXPECT_EQ(failure_reason(failure_name(FailureKind::kNone)), "");  // not a solver failure
+  EXPECT_EQ(failure_reason("SOMETHING_NEWER"), "");  // a newer solver's cause: stays SLURM_FAILED
+  EXPECT_EQ(failure_reason("INTERNAL"), "");
 }
 
 TEST(JobRunner, DecimatesModesForTheCatalogue) {

@@ -44,6 +44,7 @@ TEST(SlurmStates, SummaryJsonRoundTrip) {
   RunSummary s;
   s.status = "failed";
   s.error = "element \"inversion\"";
+  s.failure = failure_name(FailureKind::kElementInversion);
   s.elements = 412;
   s.nodes = 230;
   s.steps = 987;
@@ -56,6 +57,8 @@ TEST(SlurmStates, SummaryJsonRoundTrip) {
   const RunSummary r = parse_summary_json(summary_to_json(s));
   EXPECT_EQ(r.status, s.status);
   EXPECT_EQ(r.error, s.error);
+  EXPECT_EQ(r.failure, "ELEMENT_INVERSION");
+  EXPECT_EQ(failure_reason(r.failure), "ELEMENT_INVERSION");  // the job's reason, as a local run's
   EXPECT_EQ(r.elements, s.elements);
   EXPECT_EQ(r.steps, s.steps);
   EXPECT_DOUBLE_EQ(r.groups.pbar, 0.5);
