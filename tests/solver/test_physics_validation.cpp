@@ -305,9 +305,6 @@ TEST(PhysicsValidation, SquarePulseOnsetDoesNotDependOnTheCourantNumber) {
   }
 }
 
-// Determinism: for a given thread count the run is bit-for-bit repeatable (fixed element ranges,
-// per-thread force arrays summed in thread order); across thread counts only the summation order
-// of the nodal forces differs, so results agree to round-off.
 // The energy left after the first pass (70 ns) with the default formulation is a converged
 // figure: 16.5k and 66k elements agree within the issue's 2 % (measured 0.3 %; 264k 1.477 J/m,
 // docs/verification.md). The inviscid model is not yet converged at 16.5k (1.598 -> 1.567 ->
@@ -326,6 +323,9 @@ TEST(PhysicsValidation, EnergyAfterTheFirstPassConvergesUnderRefinement) {
   EXPECT_NEAR(coarse, fine, 0.02 * fine);
 }
 
+// Determinism: for a given thread count the run is bit-for-bit repeatable (fixed element ranges,
+// per-thread force arrays summed in thread order); across thread counts only the summation order
+// of the nodal forces differs, so results agree to round-off.
 TEST(PhysicsValidation, ResultsAreDeterministicForAGivenThreadCount) {
   const auto spec1 = spec_from(R"({"geometry":{"target_elements":1500},
       "run":{"end_time":3e-8,"output_interval":0,"threads":1}})");
