@@ -130,6 +130,8 @@ Diagnostics::Diagnostics(const Problem& problem, const ElementGeometry& geometry
 
   // Rim: reference angles, trapezoidal weights in theta and the Fourier tables.
   const std::size_t nr = rim_nodes_.size();
+  // Above (N - 1) / 2 a mode is an alias of a lower one: it would report that one's amplitude.
+  modes_ = std::min(modes_, nr >= 3 ? static_cast<int>((nr - 1) / 2) : 0);
   std::vector<double> theta(nr);
   rim_ref_radius_.resize(nr);
   for (std::size_t k = 0; k < nr; ++k) {

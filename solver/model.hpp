@@ -99,9 +99,11 @@ struct SolverOptions {
   double cfl = 0.7;  // docs/model.md, "Time integration"
   double history_interval_s = 1e-9;
   double output_interval_s = 20e-9;  // <= 0: no field frames
-  int modes = 64;                    // Fourier modes 0..modes of the rim radial displacement
-  int threads = 1;                   // element-loop threads
-  int64_t max_steps = 0;             // 0 = unlimited
+  // Fourier modes 0..modes of the rim radial displacement (fewer on a rim of fewer than
+  // 2 modes + 1 nodes: Diagnostics::resolved_modes)
+  int modes = 64;
+  int threads = 1;        // element-loop threads
+  int64_t max_steps = 0;  // 0 = unlimited
   // Fail with FailureKind::kMeshDistortion at the first history sample whose largest element
   // aspect ratio exceeds this; 0 = no limit.
   double max_aspect_ratio = 0;
