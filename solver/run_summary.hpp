@@ -26,7 +26,8 @@ NondimensionalGroups nondimensional_groups(const Material& material,
 // records it; the service reuses a stored result only from the same revision (docs/api.md).
 // 1 is the first recorded (2026-12-02); results written before carry none and read as 0.
 // 2: the ring mesher's hexagonal centre (ring_mesher.cpp).
-inline constexpr int kSolverRevision = 2;
+// 3: rims of fewer than 2 run.modes + 1 nodes report only the modes they resolve (diagnostics.cpp).
+inline constexpr int kSolverRevision = 3;
 
 struct RunSummary {
   int solver_revision = kSolverRevision;  // of the solver that produced it; 0 = not recorded
