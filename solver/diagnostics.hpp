@@ -38,10 +38,8 @@ struct ElementStress {
 class Diagnostics {
  public:
   // modes: the highest Fourier mode asked for; the rim's N nodes resolve modes up to
-  // (N - 1) / 2 (mode N - m takes the same values at the nodes as mode m), so no more are computed
-  // (resolved_modes).
+  // (N - 1) / 2 (mode N - m takes the same values at the nodes as mode m), so no more are computed.
   Diagnostics(const Problem& problem, const ElementGeometry& geometry, int modes);
-  int resolved_modes() const { return modes_; }
 
   double reference_radius() const { return reference_radius_; }
   std::array<double, 2> origin() const { return origin_; }

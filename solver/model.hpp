@@ -100,7 +100,7 @@ struct SolverOptions {
   double history_interval_s = 1e-9;
   double output_interval_s = 20e-9;  // <= 0: no field frames
   // Fourier modes 0..modes of the rim radial displacement (fewer on a rim of fewer than
-  // 2 modes + 1 nodes: Diagnostics::resolved_modes)
+  // 2 modes + 1 nodes: the Diagnostics constructor)
   int modes = 64;
   int threads = 1;        // element-loop threads
   int64_t max_steps = 0;  // 0 = unlimited
