@@ -32,6 +32,32 @@ __attribute__((target_clones("avx512f", "avx2", "default"))) void correct_nodes(
   }
 }
 
+void accumulate_consistent_mass_difference(const ElementGeometry& g, double density,
+                                           const double* ax, const double* ay, std::size_t begin,
+                                           std::size_t end, NodeForce* difference) {
+  for (std::size_t e = begin; e < end; ++e) {
+    const int32_t i = g.node0[e], j = g.node1[e], k = g.node2[e];
+    const double w = density * g.area0[e] / 12.0;
+    const ForceLanes ai{ax[i], ay[i]}, aj{ax[j], ay[j]}, ak{ax[k], ay[k]};
+    difference[i].lanes += w * (aj + ak - 2.0 * ai);
+    difference[j].lanes += w * (ai + ak - 2.0 * aj);
+    difference[k].lanes += w * (ai + aj - 2.0 * ak);
+  }
+}
+
+__attribute__((target_clones("avx512f", "avx2", "default"))) void correct_mass_blend(
+    double dt, double alpha, std::size_t begin, std::size_t end,
+    const NodeForce* __restrict difference, const uint8_t* __restrict free_x,
+    const uint8_t* __restrict free_y, const double* __restrict mass, double* __restrict ax,
+    double* __restrict ay, double* __restrict vx, double* __restrict vy) {
+  for (std::size_t i = begin; i < end; ++i) {
+    ax[i] -= alpha * free_x[i] * difference[i].lanes[0] / mass[i];
+    ay[i] -= alpha * free_y[i] * difference[i].lanes[1] / mass[i];
+    vx[i] += 0.5 * dt * ax[i];
+    vy[i] += 0.5 * dt * ay[i];
+  }
+}
+
 StepBound volume_change_step(const ElementGeometry& g, std::span<const int32_t> elements,
                              const double* vx, const double* vy, const double* ax, const double* ay,
                              double max_volume_change) {

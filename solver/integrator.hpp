@@ -2,6 +2,7 @@
 // ISA) and built without FMA contraction, so they compute exactly what the scalar loops did.
 #pragma once
 
+#include <cmath>
 #include <cstddef>
 #include <cstdint>
 #include <span>
@@ -25,6 +26,26 @@ void correct_nodes(double dt, std::size_t begin, std::size_t end, const NodeForc
                    const uint8_t* __restrict free_x, const uint8_t* __restrict free_y,
                    const double* __restrict mass, double* __restrict ax, double* __restrict ay,
                    double* __restrict vx, double* __restrict vy);
+
+// The mass blend (Element::mass_blend = alpha; docs/model.md, "Mass"). The accelerations solve
+// M a = f with M = (1 - alpha) M_L + alpha M_C approximately, by one Jacobi step from the lumped
+// ones: a = a_L + alpha M_L^-1 (M_L - M_C) a_L. Per element (M_C - M_L) gives node i
+// rho A_e / 12 (a_j + a_k - 2 a_i); its rows sum to zero, so momentum is unchanged.
+// Adds those shares of elements [begin, end) to difference (the lumped a_L in ax, ay).
+void accumulate_consistent_mass_difference(const ElementGeometry& geometry, double density,
+                                           const double* ax, const double* ay, std::size_t begin,
+                                           std::size_t end, NodeForce* difference);
+// Over nodes [begin, end): a -= alpha free (M_C - M_L) a_L / m (difference as above); v += dt/2 a.
+void correct_mass_blend(double dt, double alpha, std::size_t begin, std::size_t end,
+                        const NodeForce* __restrict difference, const uint8_t* __restrict free_x,
+                        const uint8_t* __restrict free_y, const double* __restrict mass,
+                        double* __restrict ax, double* __restrict ay, double* __restrict vx,
+                        double* __restrict vy);
+// The corrected accelerations are (I + alpha S) a_L with S = M_L^-1 (M_L - M_C), whose eigenvalues
+// lie in [0, 3/4] (each element's: 0, 3/4, 3/4), so the stable step shrinks by at most this factor.
+inline double mass_blend_step_factor(double alpha) {
+  return 1.0 / std::sqrt(1.0 + 0.75 * alpha);
+}
 
 // The largest step over which no element's area is predicted to change by more than
 // max_volume_change (a fraction), from the nodes' velocities and accelerations at the start of the

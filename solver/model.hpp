@@ -51,6 +51,9 @@ struct Element {
   // nodes' (the element-level volume modes nodal pressures leave free; nodal_pressure.hpp).
   // The spec's default (run_spec.cpp); docs/verification.md says why this value.
   double stabilization = 0.01;
+  // alpha: weight of the consistent mass in the nodal mass (0 = lumped). The accelerations get one
+  // explicit correction towards (1 - alpha) M_L + alpha M_C (integrator.hpp, docs/model.md "Mass").
+  double mass_blend = 0.0;
 };
 
 // A seeded perturbation of the pulse: p(theta, t) = p(t) (1 + amplitude cos(mode theta)), theta

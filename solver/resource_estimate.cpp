@@ -4,6 +4,8 @@
 #include <cmath>
 #include <numbers>
 
+#include "solver/integrator.hpp"
+
 namespace softshock {
 
 namespace {
@@ -54,7 +56,8 @@ double estimate_stable_dt(const v1::RunSpec& spec, double elements, double area_
   // acoustic limit of a graded mesh's smallest element).
   const double q = c * (spec.viscosity().c2() + 0.5 * spec.viscosity().c1()) +
                    4.0 / 3.0 * m.shear_viscosity() * j / (m.density() * altitude);
-  return spec.run().cfl() * h / (q + std::sqrt(q * q + c * c));
+  return spec.run().cfl() * mass_blend_step_factor(spec.element().mass_blend()) * h /
+         (q + std::sqrt(q * q + c * c));
 }
 
 ResourceEstimate estimate_resources(const v1::RunSpec& spec, double elements, double area_m2) {

@@ -25,7 +25,7 @@ constexpr double kDensity = 1000.0, kKappa = 2e9, kMu = 5e3, kGamma = 6.15;
 constexpr double kShearViscosity = 0.25;  // Pa s: docs/model.md, "Physical viscosity"
 constexpr double kC1 = 1.0, kC2 = 0.1, kRamp = 0.2;
 constexpr double kElementWeight = Element{}.element_weight,
-                 kStabilization = Element{}.stabilization;
+                 kStabilization = Element{}.stabilization, kMassBlend = Element{}.mass_blend;
 constexpr double kRoughness = 3e-4;
 constexpr int kRoughnessMinMode = 2, kRoughnessMaxMode = 16;
 constexpr double kStripWavelength = 10e-6, kStripHeight = 40e-6, kStripAmplitude = 50e-9;
@@ -64,7 +64,7 @@ void set_parameters(const v1::RunSpec& s, Problem& p) {
                  v.ramp()};
   p.element = {s.element().formulation() == v1::P1 ? ElementFormulation::kP1
                                                    : ElementFormulation::kAverageNodalPressure,
-               s.element().element_weight(), s.element().stabilization()};
+               s.element().element_weight(), s.element().stabilization(), s.element().mass_blend()};
   const auto& l = s.load();
   PulseShape shape = PulseShape::kSquare;
   if (l.shape() == v1::GAUSSIAN) shape = PulseShape::kGaussian;
@@ -166,6 +166,7 @@ v1::RunSpec with_defaults(const v1::RunSpec& in) {
     el->set_formulation(v1::AVERAGE_NODAL_PRESSURE);
   if (!el->has_element_weight()) el->set_element_weight(kElementWeight);
   if (!el->has_stabilization()) el->set_stabilization(kStabilization);
+  if (!el->has_mass_blend()) el->set_mass_blend(kMassBlend);
   auto* l = s.mutable_load();
   if (!l->has_pressure()) l->set_pressure(kPressure);
   if (!l->has_duration()) l->set_duration(kDuration);
@@ -266,6 +267,8 @@ void validate_spec(const v1::RunSpec& s, const SpecLimits& limits) {
       "element.element_weight", "must be between 0 and 1");
   require(std::isfinite(el.stabilization()) && el.stabilization() >= 0 && el.stabilization() <= 10,
           "element.stabilization", "must be between 0 and 10");
+  require(std::isfinite(el.mass_blend()) && el.mass_blend() >= 0 && el.mass_blend() <= 1,
+          "element.mass_blend", "must be between 0 (lumped) and 1 (consistent)");
 
   const auto& l = s.load();
   require(

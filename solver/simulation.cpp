@@ -274,6 +274,7 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
   // elements and adds its elements' forces into its own nodal arrays; those and the partial
   // totals are summed in thread order, so results depend only on the thread count.
   std::vector<KernelTotals> partial(threads);
+  const double mass_blend = problem.element.mass_blend;
   const double w_nodal = 1.0 - problem.element.element_weight;
   std::vector<double> kernel_seconds(threads, 0.0);  // per thread: RunResult::kernel_time_s
   std::vector<std::vector<NodeForce>> thread_force(threads > 1 ? threads : 0);
@@ -347,8 +348,25 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
     auto correct = [&](int tid) {  // a+ = M^-1 f; v+ = v* + dt/2 a+
       const auto [n0, n1] = node_range(tid);
       if (threads > 1) sum_threads(thread_force, n0, n1, force.data());
-      correct_nodes(dt, n0, n1, force.data(), fext_x.data(), fext_y.data(), free_x.data(),
-                    free_y.data(), mass.data(), ax.data(), ay.data(), vx.data(), vy.data());
+      // With a mass blend the velocities wait for the corrected accelerations (correct_blend).
+      correct_nodes(mass_blend > 0 ? 0.0 : dt, n0, n1, force.data(), fext_x.data(), fext_y.data(),
+                    free_x.data(), free_y.data(), mass.data(), ax.data(), ay.data(), vx.data(),
+                    vy.data());
+    };
+    // The mass blend (integrator.hpp): an element pass over the lumped accelerations, summed in
+    // the force arrays (free again once the accelerations are made), then the node correction.
+    auto blend_difference = [&](int tid) {
+      const auto [e0, e1] = element_range(tid);
+      NodeForce* out = threads > 1 ? thread_force[tid].data() : force.data();
+      if (threads == 1) std::fill(out, out + nn, NodeForce{});  // else cleared by sum_threads
+      accumulate_consistent_mass_difference(geometry, problem.material.density_kg_m3, ax.data(),
+                                            ay.data(), e0, e1, out);
+    };
+    auto correct_blend = [&](int tid) {
+      const auto [n0, n1] = node_range(tid);
+      if (threads > 1) sum_threads(thread_force, n0, n1, force.data());
+      correct_mass_blend(dt, mass_blend, n0, n1, force.data(), free_x.data(), free_y.data(),
+                         mass.data(), ax.data(), ay.data(), vx.data(), vy.data());
     };
     if (threads == 1) {
       predict(0);
@@ -362,6 +380,7 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
       work(0);
       kernel_seconds[0] += thread_cpu_seconds() - start;
       correct(0);
+      if (mass_blend > 0) blend_difference(0), correct_blend(0);
     } else {
 #pragma omp parallel num_threads(threads)
       {
@@ -385,6 +404,12 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
         timed(tid, work);
 #pragma omp barrier
         correct(tid);
+        if (mass_blend > 0) {
+#pragma omp barrier
+          blend_difference(tid);
+#pragma omp barrier
+          correct_blend(tid);
+        }
       }
     }
     KernelTotals total;
@@ -431,7 +456,8 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
   // The next step after an evaluation at time t: cfl times the elements' stable step, bounded
   // while the load acts; the element that sets it is recorded in k (the history's dt_element).
   auto next_step = [&](KernelTotals& k) {
-    const double dt_elastic = options.cfl * std::sqrt(k.min_step_sq);
+    const double dt_elastic =
+        options.cfl * mass_blend_step_factor(problem.element.mass_blend) * std::sqrt(k.min_step_sq);
     if (t >= pulse_end) return dt_elastic;
     const StepBound bound = volume_change_step(geometry, loaded_elements, vx.data(), vy.data(),
                                                ax.data(), ay.data(), kLoadStepVolumeChange);
