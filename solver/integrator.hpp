@@ -27,11 +27,11 @@ void correct_nodes(double dt, std::size_t begin, std::size_t end, const NodeForc
                    const double* __restrict mass, double* __restrict ax, double* __restrict ay,
                    double* __restrict vx, double* __restrict vy);
 
-// The mass blend (Element::mass_blend = alpha; docs/model.md, "Mass"). The accelerations solve
-// M a = f with M = (1 - alpha) M_L + alpha M_C approximately, by one Jacobi step from the lumped
-// ones: a = a_L + alpha M_L^-1 (M_L - M_C) a_L. Per element (M_C - M_L) gives node i
-// rho A_e / 12 (a_j + a_k - 2 a_i); its rows sum to zero, so momentum is unchanged.
-// Adds those shares of elements [begin, end) to difference (the lumped a_L in ax, ay).
+// The mass blend (Element::mass_blend = alpha; docs/model.md, "Mass blend"). The accelerations
+// solve M a = f with M = (1 - alpha) M_L + alpha M_C approximately, by one Jacobi step from the
+// lumped ones: a = a_L + alpha M_L^-1 (M_L - M_C) a_L. Per element (M_C - M_L) gives node i rho A_e
+// / 12 (a_j + a_k - 2 a_i); its rows sum to zero, so momentum is unchanged. Adds those shares of
+// elements [begin, end) to difference (the lumped a_L in ax, ay).
 void accumulate_consistent_mass_difference(const ElementGeometry& geometry, double density,
                                            const double* ax, const double* ay, std::size_t begin,
                                            std::size_t end, NodeForce* difference);

@@ -52,7 +52,8 @@ struct Element {
   // The spec's default (run_spec.cpp); docs/verification.md says why this value.
   double stabilization = 0.01;
   // alpha: weight of the consistent mass in the nodal mass (0 = lumped). The accelerations get one
-  // explicit correction towards (1 - alpha) M_L + alpha M_C (integrator.hpp, docs/model.md "Mass").
+  // explicit correction towards (1 - alpha) M_L + alpha M_C (integrator.hpp, docs/model.md "Mass
+  // blend").
   double mass_blend = 0.0;
 };
 
