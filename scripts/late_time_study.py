@@ -8,6 +8,8 @@ Reads WORKDIR/<run>/result.h5 and WORKDIR/<run>/summary.json for the runs the dr
   before_<N>              (optional: the same baseline from a solver before the late-time work)
   seed<m>_<N>             (1 % of mode m in the pulse, smooth rim, 450 ns)
   pbar_<P>, beta<b>_*     (stronger pulses; other element stabilisations)
+  blend_<N>, blendseed<m>_<N>  (optional: the default and the seeded runs with
+                          element.mass_blend = 0.5; blend_264000 their A-bar(t) reference)
 and prints markdown tables (docs/verification.md quotes them).
 """
 import json
@@ -53,12 +55,12 @@ def late_min_dt(ts, after=300e-9):
     return ts["dt"][t >= after].min()
 
 
-def robustness_table(work):
+def robustness_table(work, kinds=("before", "thesis", "robust")):
     print("| run | elements | steps | smallest Δt after 300 ns, every step (ps) |"
           " largest aspect ratio at 800 ns | Ā(800 ns) raw / filtered |"
           " dominant mode at 800 ns | solver wall time (s) |")
     print("|---|---|---|---|---|---|---|---|")
-    for kind in ("before", "thesis", "robust"):
+    for kind in kinds:
         for n in (4000, 16500, 66000, 264000):
             d = os.path.join(work, "%s_%d" % (kind, n))
             if not os.path.exists(os.path.join(d, "result.h5")):
@@ -75,9 +77,9 @@ def robustness_table(work):
                 s["dominant_mode_end"], s["wall_time_s"]))
 
 
-def abar_table(work):
+def abar_table(work, kind="robust"):
     """Raw A-bar(t) of the default run on each mesh against the finest one present."""
-    runs = [(n, os.path.join(work, "robust_%d" % n)) for n in (4000, 16500, 66000, 264000)]
+    runs = [(n, os.path.join(work, "%s_%d" % (kind, n))) for n in (4000, 16500, 66000, 264000)]
     runs = [(n, d) for n, d in runs if os.path.exists(os.path.join(d, "result.h5"))]
     if not runs:
         return
@@ -95,13 +97,13 @@ def abar_table(work):
                                         for v, r in zip(row, ref)) + " |")
 
 
-def convergence_table(work):
+def convergence_table(work, prefix="seed"):
     print("| m | elements | A_m(70 ns) | G_m(250 ns) | G_m(450 ns) | crest 1 | crest 2 |"
           " noise / seeded (instantaneous) |")
     print("|---|---|---|---|---|---|---|---|")
     for m in (8, 16):
         for n in (16500, 66000, 264000):
-            d = os.path.join(work, "seed%d_%d" % (m, n))
+            d = os.path.join(work, "%s%d_%d" % (prefix, m, n))
             if not os.path.exists(os.path.join(d, "result.h5")):
                 continue
             f = h5py.File(os.path.join(d, "result.h5"), "r")
@@ -275,6 +277,13 @@ def main():
     abar_table(work)
     print("\n## Seeded growth\n")
     convergence_table(work)
+    if os.path.exists(os.path.join(work, "blend_264000", "result.h5")):
+        print("\n## The mass blend (element.mass_blend = 0.5)\n")
+        robustness_table(work, kinds=("blend",))
+        print()
+        abar_table(work, kind="blend")
+        print()
+        convergence_table(work, prefix="blendseed")
     print("\n## Stronger pulses (16.5k, 800 ns)\n")
     pbar_table(work)
     print("\n## The element stabilisation beta (16.5k and 66k, 800 ns)\n")
