@@ -24,6 +24,7 @@
 #include "server/jobs/executor.hpp"
 #include "server/jobs/job_events.hpp"
 #include "server/jobs/job_runner.hpp"
+#include "server/jobs/slurm_protocol.hpp"
 #include "server/store/catalogue.hpp"
 
 namespace softshock::server {
@@ -44,22 +45,6 @@ struct SlurmConfig {
   double poll_s = 1.0;
   std::size_t max_queued = 1000;  // not yet submitted + PENDING on Slurm
 };
-
-// How a Slurm job state reads in our model.
-struct SlurmOutcome {
-  enum class Kind { kWaiting, kRunning, kTerminal, kUnknown } kind = Kind::kUnknown;
-  JobState state = JobState::kQueued;  // for kTerminal
-  std::string reason;                  // for kTerminal FAILED: SLURM_<STATE>
-};
-// PENDING (and requeue/hold states) → waiting (QUEUED); RUNNING, COMPLETING, SUSPENDED… →
-// running; COMPLETED → SUCCEEDED (once the result is verified); CANCELLED → CANCELLED; TIMEOUT
-// (the wall limit) → FAILED WALL_TIME_EXCEEDED; FAILED, OUT_OF_MEMORY, NODE_FAIL, BOOT_FAIL,
-// DEADLINE, PREEMPTED → FAILED with reason SLURM_<STATE> (the executor then takes a solver's own
-// cause from its result's summary where it names one). Accepts sacct's "CANCELLED by 0" form.
-SlurmOutcome map_slurm_state(const std::string& slurm_state);
-
-// The job id of `sbatch --parsable` output ("123" or "123;cluster"); empty if there is none.
-std::string parse_sbatch_job_id(const std::string& output);
 
 class SlurmExecutor final : public Executor {
  public:
