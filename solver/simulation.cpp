@@ -455,9 +455,9 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
   const std::vector<int32_t> loaded_elements = elements_on_nodes(geometry, loaded_nodes, nn);
   // The next step after an evaluation at time t: cfl times the elements' stable step, bounded
   // while the load acts; the element that sets it is recorded in k (the history's dt_element).
+  const double cfl_with_mass = options.cfl * mass_blend_step_factor(mass_blend);
   auto next_step = [&](KernelTotals& k) {
-    const double dt_elastic =
-        options.cfl * mass_blend_step_factor(problem.element.mass_blend) * std::sqrt(k.min_step_sq);
+    const double dt_elastic = cfl_with_mass * std::sqrt(k.min_step_sq);
     if (t >= pulse_end) return dt_elastic;
     const StepBound bound = volume_change_step(geometry, loaded_elements, vx.data(), vy.data(),
                                                ax.data(), ay.data(), kLoadStepVolumeChange);

@@ -162,20 +162,10 @@ StoredSummary stored_summary_from_result(const std::string& h5_path, bool* compl
   return stored;
 }
 
+// The solver names its causes as the job reasons do (reason::kElementInversion, ...).
 std::string failure_reason(FailureKind kind) {
-  switch (kind) {
-    case FailureKind::kElementInversion:
-      return reason::kElementInversion;
-    case FailureKind::kNonFinite:
-      return reason::kNonFinite;
-    case FailureKind::kTimeStepCollapse:
-      return reason::kTimeStepCollapse;
-    case FailureKind::kMeshDistortion:
-      return reason::kMeshDistortion;
-    case FailureKind::kNone:
-      break;
-  }
-  return reason::kInternal;
+  const std::string name = failure_name(kind);
+  return name.empty() ? reason::kInternal : name;
 }
 
 std::string failure_reason(const std::string& summary_failure) {
