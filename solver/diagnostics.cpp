@@ -214,15 +214,24 @@ ElementStress Diagnostics::element_stress(const NodalView& nodes, const ElementS
   return cauchy_stress(f, sm, mat.shear_modulus_Pa, s, e);
 }
 
+double Diagnostics::kinetic_energy(const NodalView& nodes) const {
+  const std::size_t nn = problem_.mesh.node_count();
+  double energy = 0;
+  if (nodes.px)  // a mass blend: 1/2 v . K^-1 v (integrator.hpp, blended_momentum)
+    for (std::size_t i = 0; i < nn; ++i)
+      energy += 0.5 * (nodes.vx[i] * nodes.px[i] + nodes.vy[i] * nodes.py[i]);
+  else
+    for (std::size_t i = 0; i < nn; ++i)
+      energy += 0.5 * nodes.mass[i] * (nodes.vx[i] * nodes.vx[i] + nodes.vy[i] * nodes.vy[i]);
+  return energy;
+}
+
 void Diagnostics::sample(const NodalView& nodes, const ElementState& s, const KernelView& kernel,
                          const KernelTotals& totals, double t, double dt, double dissipated,
                          double external_work, History& h) const {
   const int64_t dt_element = totals.min_step_element;
   const Mesh& mesh = problem_.mesh;
-  const std::size_t nn = mesh.node_count();
-  double kinetic = 0;
-  for (std::size_t i = 0; i < nn; ++i)
-    kinetic += 0.5 * nodes.mass[i] * (nodes.vx[i] * nodes.vx[i] + nodes.vy[i] * nodes.vy[i]);
+  const double kinetic = kinetic_energy(nodes);
   // The stored energy of the whole body (J/m): the nodal passes' volumetric and stabilisation
   // energy (average nodal pressure) plus the elements'.
   const double elastic = totals.nodal_energy + totals.element_energy;

@@ -16,6 +16,7 @@ namespace softshock {
 // Read-only view of the nodal state.
 struct NodalView {
   const double *x, *y, *vx, *vy, *ax, *ay, *mass;
+  const double *px = nullptr, *py = nullptr;  // with a mass blend, its momentum K^-1 v
 };
 
 // What the last force evaluation computed at the current positions, reused by the diagnostics
@@ -63,6 +64,9 @@ class Diagnostics {
   }
   // The volumetric mean stress the kernel applied to element e (average nodal pressure only).
   double volumetric_mean_stress(const KernelView& kernel, std::size_t e) const;
+  // The kinetic energy of the mass the integrator moves the nodes with: 1/2 v^T M_L v, or with a
+  // mass blend 1/2 v^T K^-1 v of the operator its correction applies (docs/model.md).
+  double kinetic_energy(const NodalView& nodes) const;
   // Cauchy stress of element e; its mean stress under the element formulation (kernel: the
   // state the last evaluation left).
   ElementStress element_stress(const NodalView& nodes, const ElementState& elements,

@@ -27,7 +27,8 @@ NondimensionalGroups nondimensional_groups(const Material& material,
 // 1 is the first recorded (2026-12-02); results written before carry none and read as 0.
 // 2: the ring mesher's hexagonal centre (ring_mesher.cpp).
 // 3: rims of fewer than 2 run.modes + 1 nodes report only the modes they resolve (diagnostics.cpp).
-inline constexpr int kSolverRevision = 3;
+// 4: with a mass blend the kinetic energy is the blended mass's, not the lumped (diagnostics.cpp).
+inline constexpr int kSolverRevision = 4;
 
 struct RunSummary {
   int solver_revision = kSolverRevision;  // of the solver that produced it; 0 = not recorded

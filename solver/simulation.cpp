@@ -192,6 +192,14 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
     if (!problem.fixed_x.empty() && problem.fixed_x[i]) free_x[i] = 0, vx[i] = 0;
     if (!problem.fixed_y.empty() && problem.fixed_y[i]) free_y[i] = 0, vy[i] = 0;
   }
+  // With a mass blend: the blended mass's momentum (its kinetic energy) and the last forces.
+  const double mass_blend = problem.element.mass_blend;
+  std::vector<double> px, py, fprev_x, fprev_y;
+  if (mass_blend > 0) {
+    px.resize(nn), py.resize(nn), fprev_x.assign(nn, 0.0), fprev_y.assign(nn, 0.0);
+    blended_momentum(geometry, problem.material.density_kg_m3, mass_blend, nn, mass.data(),
+                     free_x.data(), free_y.data(), vx.data(), vy.data(), px.data(), py.data());
+  }
 
   // Follower pressure: loaded edges and the nodes they touch.
   const auto& loaded_edges = problem.loaded_edges.empty() && problem.load_all_boundary
@@ -274,7 +282,6 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
   // elements and adds its elements' forces into its own nodal arrays; those and the partial
   // totals are summed in thread order, so results depend only on the thread count.
   std::vector<KernelTotals> partial(threads);
-  const double mass_blend = problem.element.mass_blend;
   const double w_nodal = 1.0 - problem.element.element_weight;
   std::vector<double> kernel_seconds(threads, 0.0);  // per thread: RunResult::kernel_time_s
   std::vector<std::vector<NodeForce>> thread_force(threads > 1 ? threads : 0);
@@ -339,7 +346,8 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
       if (threads == 1) std::fill(out, out + nn, NodeForce{});  // else cleared by correct
       compute_element_forces(geometry, nodes.data(), params, e0, e1, elements, partial[tid], out);
     };
-    // The kernel's CPU time: the element loop and the nodal-pressure passes before it.
+    // The kernel's CPU time: the element loop, the nodal-pressure passes before it and the mass
+    // blend's element pass after it.
     auto timed = [&](int tid, const auto& pass) {
       const double start = thread_cpu_seconds();
       pass(tid);
@@ -352,6 +360,10 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
       correct_nodes(mass_blend > 0 ? 0.0 : dt, n0, n1, force.data(), fext_x.data(), fext_y.data(),
                     free_x.data(), free_y.data(), mass.data(), ax.data(), ay.data(), vx.data(),
                     vy.data());
+      if (mass_blend > 0)
+        advance_blended_momentum(dt, n0, n1, force.data(), fext_x.data(), fext_y.data(),
+                                 free_x.data(), free_y.data(), fprev_x.data(), fprev_y.data(),
+                                 px.data(), py.data());
     };
     // The mass blend (integrator.hpp): an element pass over the lumped accelerations, summed in
     // the force arrays (free again once the accelerations are made), then the node correction.
@@ -380,7 +392,12 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
       work(0);
       kernel_seconds[0] += thread_cpu_seconds() - start;
       correct(0);
-      if (mass_blend > 0) blend_difference(0), correct_blend(0);
+      if (mass_blend > 0) {
+        const double blend_start = thread_cpu_seconds();  // the blend's element pass is kernel work
+        blend_difference(0);
+        kernel_seconds[0] += thread_cpu_seconds() - blend_start;
+        correct_blend(0);
+      }
     } else {
 #pragma omp parallel num_threads(threads)
       {
@@ -406,7 +423,7 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
         correct(tid);
         if (mass_blend > 0) {
 #pragma omp barrier
-          blend_difference(tid);
+          timed(tid, blend_difference);
 #pragma omp barrier
           correct_blend(tid);
         }
@@ -427,7 +444,15 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
   };
 
   RunResult result;
-  const NodalView view{x.data(), y.data(), vx.data(), vy.data(), ax.data(), ay.data(), mass.data()};
+  const NodalView view{x.data(),
+                       y.data(),
+                       vx.data(),
+                       vy.data(),
+                       ax.data(),
+                       ay.data(),
+                       mass.data(),
+                       mass_blend > 0 ? px.data() : nullptr,
+                       mass_blend > 0 ? py.data() : nullptr};
   const KernelView kernel_view =
       nodal ? KernelView{nodal_j.data(), nodal_sm.data(), s_element.data(), j_element.data()}
             : KernelView{};
