@@ -54,7 +54,7 @@ struct Element {
   // alpha: weight of the consistent mass in the nodal mass (0 = lumped). The accelerations get one
   // explicit correction towards (1 - alpha) M_L + alpha M_C (integrator.hpp, docs/model.md "Mass
   // blend").
-  double mass_blend = 0.0;
+  double mass_blend = 0.5;
 };
 
 // A seeded perturbation of the pulse: p(theta, t) = p(t) (1 + amplitude cos(mode theta)), theta

@@ -33,39 +33,46 @@ RunResult run_spec(const v1::RunSpec& spec, Problem* problem_out = nullptr,
 }
 
 // (b) No viscosity, no load, an initial velocity field: central differences keep the total
-// energy bounded. 2000 steps; the tolerance 0.1 % is the issue's.
+// energy bounded. 2000 steps; the tolerance 0.1 % is the issue's. Lumped and with the default
+// mass blend, whose kinetic energy is its own mass's (½ v.K^-1 v, docs/model.md): counted with the
+// lumped masses the blend's drift was 1.2e-3.
 TEST(PhysicsValidation, EnergyIsConservedWithoutViscosity) {
-  Problem p;
-  p.mesh = mesh_disk(90e-6, 2000);
-  p.viscosity.enabled = false;
-  p.load_all_boundary = false;
-  p.origin = {0, 0};
-  p.reference_radius_m = 90e-6;
-  const std::size_t nn = p.mesh.node_count();
-  p.initial_vx.resize(nn), p.initial_vy.resize(nn);
-  for (std::size_t i = 0; i < nn; ++i) {  // radial breathing plus a shear swirl, ~1 % strain
-    const double X = p.mesh.x[i] / 90e-6, Y = p.mesh.y[i] / 90e-6;
-    p.initial_vx[i] = 10.0 * X - 5.0 * Y * (1 - X * X - Y * Y);
-    p.initial_vy[i] = 10.0 * Y + 5.0 * X * (1 - X * X - Y * Y);
+  for (const double mass_blend : {0.0, 0.5}) {
+    SCOPED_TRACE(mass_blend);
+    Problem p;
+    p.element.mass_blend = mass_blend;
+    p.mesh = mesh_disk(90e-6, 2000);
+    p.viscosity.enabled = false;
+    p.load_all_boundary = false;
+    p.origin = {0, 0};
+    p.reference_radius_m = 90e-6;
+    const std::size_t nn = p.mesh.node_count();
+    p.initial_vx.resize(nn), p.initial_vy.resize(nn);
+    for (std::size_t i = 0; i < nn; ++i) {  // radial breathing plus a shear swirl, ~1 % strain
+      const double X = p.mesh.x[i] / 90e-6, Y = p.mesh.y[i] / 90e-6;
+      p.initial_vx[i] = 10.0 * X - 5.0 * Y * (1 - X * X - Y * Y);
+      p.initial_vy[i] = 10.0 * Y + 5.0 * X * (1 - X * X - Y * Y);
+    }
+    SolverOptions o;
+    o.end_time_s = 1.0;
+    o.max_steps = 2000;
+    o.history_interval_s = 1e-9;
+    o.output_interval_s = 0;
+    o.modes = 4;
+    const RunResult r = run_simulation(p, o);
+    ASSERT_EQ(r.status, RunStatus::kCompleted) << r.error;
+    ASSERT_EQ(r.steps, 2000);
+    const History& h = r.history;
+    const double e0 = h.kinetic_energy[0] + h.elastic_energy[0];
+    double worst = 0;
+    for (std::size_t k = 0; k < h.size(); ++k)
+      worst = std::max(worst, std::fabs(h.kinetic_energy[k] + h.elastic_energy[k] - e0) / e0);
+    std::printf("mass blend %.1f: energy drift without viscosity over 2000 steps: %.2e\n",
+                mass_blend, worst);
+    EXPECT_LT(worst, 1e-3);
+    EXPECT_EQ(h.external_work.back(), 0.0);
+    EXPECT_EQ(h.dissipated_energy.back(), 0.0);
   }
-  SolverOptions o;
-  o.end_time_s = 1.0;
-  o.max_steps = 2000;
-  o.history_interval_s = 1e-9;
-  o.output_interval_s = 0;
-  o.modes = 4;
-  const RunResult r = run_simulation(p, o);
-  ASSERT_EQ(r.status, RunStatus::kCompleted) << r.error;
-  ASSERT_EQ(r.steps, 2000);
-  const History& h = r.history;
-  const double e0 = h.kinetic_energy[0] + h.elastic_energy[0];
-  double worst = 0;
-  for (std::size_t k = 0; k < h.size(); ++k)
-    worst = std::max(worst, std::fabs(h.kinetic_energy[k] + h.elastic_energy[k] - e0) / e0);
-  std::printf("energy drift without viscosity over 2000 steps: %.2e\n", worst);
-  EXPECT_LT(worst, 1e-3);
-  EXPECT_EQ(h.external_work.back(), 0.0);
-  EXPECT_EQ(h.dissipated_energy.back(), 0.0);
 }
 
 // (c) Viscosity on, the baseline pulse: kinetic + stored elastic + dissipated = external work.
@@ -449,11 +456,14 @@ TEST(PhysicsValidation, TheFinalSampleHasTheStoredEnergyAndAspectRatio) {
       RunControl control;
       control.cancel = &cancel;
       control.on_frame = [&](const FieldFrame& f) { final_aspect = f.aspect_ratio; };
+      // Steps that end off the history grid (the default mass blend's step; 43 steps of the
+      // nodal-pressure element end at 15 ns, on it).
+      const int64_t max_steps = formulation == "P1" ? 37 : 39;
+      const int64_t cancel_steps = formulation == "P1" ? 43 : 44;
       if (ending == "cancel")
-        control.on_progress = [&](const Progress& pr) { cancel = pr.steps >= 43; };
+        control.on_progress = [&](const Progress& pr) { cancel = pr.steps >= cancel_steps; };
       const Problem problem = make_problem(spec);
       SolverOptions options = make_options(spec);
-      const int64_t max_steps = formulation == "P1" ? 37 : 39;  // a step that ends off the grid
       if (ending == "max_steps") options.max_steps = max_steps;
       const RunResult r = run_simulation(problem, options, control);
       ASSERT_NE(r.status, RunStatus::kFailed) << r.error;
