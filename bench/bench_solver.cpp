@@ -1,6 +1,6 @@
 // Solver grind time: nanoseconds per element per step (LS-DYNA's "time per zone cycle"), on the
-// default disk (concentric rings, the default element and viscosities) of ~16.5k, ~66k and ~264k
-// elements, with 1 and 2 element-loop threads.
+// default disk (concentric rings, the default element, mass blend and viscosities) of ~16.5k, ~66k
+// and ~264k elements, with 1 and 2 element-loop threads; and 16.5k lumped, one thread.
 // Each iteration runs the baseline problem for `kSteps` steps and subtracts a run of
 // `kWarm` steps, so meshing and set-up are excluded; diagnostics are off (history every 1 s).
 //   build/bench/bench_solver --benchmark_repetitions=5 --benchmark_report_aggregates_only=true
@@ -18,14 +18,16 @@ namespace {
 
 constexpr int kWarm = 5, kSteps = 105;
 
-const softshock::Problem& disk(int elements) {
-  static std::map<int, softshock::Problem> cache;
-  auto it = cache.find(elements);
+// The default disk of about `elements` triangles; mass_blend < 0: the default's mass blend.
+const softshock::Problem& disk(int elements, double mass_blend = -1) {
+  static std::map<std::pair<int, double>, softshock::Problem> cache;
+  auto it = cache.find({elements, mass_blend});
   if (it == cache.end()) {
     auto spec = softshock::v1::RunSpec();
     spec.mutable_geometry()->set_target_elements(elements);
+    if (mass_blend >= 0) spec.mutable_element()->set_mass_blend(mass_blend);
     spec = softshock::normalize_spec(spec);
-    it = cache.emplace(elements, softshock::make_problem(spec)).first;
+    it = cache.emplace(std::pair{elements, mass_blend}, softshock::make_problem(spec)).first;
   }
   return it->second;
 }
@@ -56,9 +58,7 @@ Seconds seconds_for(const softshock::Problem& p, int steps, int threads) {
           process_cpu_seconds() - c0};
 }
 
-void BM_GrindTime(benchmark::State& state) {
-  const auto& p = disk(static_cast<int>(state.range(0)));
-  const int threads = static_cast<int>(state.range(1));
+void grind_time(benchmark::State& state, const softshock::Problem& p, int threads) {
   const double element_steps = static_cast<double>(p.mesh.element_count()) * (kSteps - kWarm);
   double wall = 0, cpu = 0;
   for (auto _ : state) {
@@ -72,9 +72,25 @@ void BM_GrindTime(benchmark::State& state) {
   state.counters["wall_ns_per_elem_step"] = wall * 1e9 / n;
   state.counters["cpu_ns_per_elem_step"] = cpu * 1e9 / n;
 }
+
+void BM_GrindTime(benchmark::State& state) {
+  grind_time(state, disk(static_cast<int>(state.range(0))), static_cast<int>(state.range(1)));
+}
 BENCHMARK(BM_GrindTime)
     ->ArgsProduct({{16500, 66000, 264000}, {1, 2}})
     ->ArgNames({"target_elements", "threads"})
+    ->UseManualTime()
+    ->Unit(benchmark::kMillisecond)
+    ->Iterations(3);
+
+// The same with the lumped mass (element.mass_blend 0, the default before 2026-12-02 evening):
+// what the default's mass blend costs per element-step.
+void BM_GrindTimeLumped(benchmark::State& state) {
+  grind_time(state, disk(static_cast<int>(state.range(0)), 0.0), 1);
+}
+BENCHMARK(BM_GrindTimeLumped)
+    ->Arg(16500)
+    ->ArgName("target_elements")
     ->UseManualTime()
     ->Unit(benchmark::kMillisecond)
     ->Iterations(3);

@@ -34,12 +34,18 @@ __attribute__((target_clones("avx512f", "avx2", "default"))) void correct_nodes(
   }
 }
 
-void accumulate_consistent_mass_difference(const ElementGeometry& g, double density,
+std::vector<double> consistent_mass_weights(const ElementGeometry& g, double density) {
+  std::vector<double> weight(g.size());
+  for (std::size_t e = 0; e < g.size(); ++e) weight[e] = density * g.area0[e] / 12.0;
+  return weight;
+}
+
+void accumulate_consistent_mass_difference(const ElementGeometry& g, const double* weight,
                                            const double* ax, const double* ay, std::size_t begin,
                                            std::size_t end, NodeForce* difference) {
   for (std::size_t e = begin; e < end; ++e) {
     const int32_t i = g.node0[e], j = g.node1[e], k = g.node2[e];
-    const double w = density * g.area0[e] / 12.0;
+    const double w = weight[e];
     const ForceLanes ai{ax[i], ay[i]}, aj{ax[j], ay[j]}, ak{ax[k], ay[k]};
     difference[i].lanes += w * (aj + ak - 2.0 * ai);
     difference[j].lanes += w * (ai + ak - 2.0 * aj);
@@ -60,7 +66,7 @@ __attribute__((target_clones("avx512f", "avx2", "default"))) void correct_mass_b
   }
 }
 
-void blended_momentum(const ElementGeometry& geometry, double density, double alpha,
+void blended_momentum(const ElementGeometry& geometry, const double* weight, double alpha,
                       std::size_t nodes, const double* mass, const uint8_t* free_x,
                       const uint8_t* free_y, const double* vx, const double* vy, double* px,
                       double* py) {
@@ -74,7 +80,7 @@ void blended_momentum(const ElementGeometry& geometry, double density, double al
   }
   for (int k = 1; k <= 400 && size > 0; ++k) {  // ratio <= 3/4: 400 terms reach any round-off
     std::fill(difference.begin(), difference.end(), NodeForce{});
-    accumulate_consistent_mass_difference(geometry, density, yx.data(), yy.data(), 0,
+    accumulate_consistent_mass_difference(geometry, weight, yx.data(), yy.data(), 0,
                                           geometry.size(), difference.data());
     double term = 0;
     for (std::size_t i = 0; i < nodes; ++i) {

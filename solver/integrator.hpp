@@ -32,7 +32,9 @@ void correct_nodes(double dt, std::size_t begin, std::size_t end, const NodeForc
 // lumped ones: a = a_L + alpha M_L^-1 (M_L - M_C) a_L. Per element (M_C - M_L) gives node i rho A_e
 // / 12 (a_j + a_k - 2 a_i); its rows sum to zero, so momentum is unchanged. Adds those shares of
 // elements [begin, end) to difference (the lumped a_L in ax, ay).
-void accumulate_consistent_mass_difference(const ElementGeometry& geometry, double density,
+// weight: each element's rho A_e / 12 (consistent_mass_weights, computed once).
+std::vector<double> consistent_mass_weights(const ElementGeometry& geometry, double density);
+void accumulate_consistent_mass_difference(const ElementGeometry& geometry, const double* weight,
                                            const double* ax, const double* ay, std::size_t begin,
                                            std::size_t end, NodeForce* difference);
 // Over nodes [begin, end): a -= alpha free (M_C - M_L) a_L / m (difference as above); v += dt/2 a.
@@ -46,7 +48,7 @@ void correct_mass_blend(double dt, double alpha, std::size_t begin, std::size_t 
 // changes 1/2 v^T K^-1 v, the kinetic energy the diagnostics report. From v by the series
 // K^-1 = M_L sum_k (-alpha M_L^-1 (M_L - M_C))^k (ratio at most 3 alpha / 4), summed to round-off:
 // once, for an initial velocity field; the integrator then keeps p by advance_blended_momentum.
-void blended_momentum(const ElementGeometry& geometry, double density, double alpha,
+void blended_momentum(const ElementGeometry& geometry, const double* weight, double alpha,
                       std::size_t nodes, const double* mass, const uint8_t* free_x,
                       const uint8_t* free_y, const double* vx, const double* vy, double* px,
                       double* py);

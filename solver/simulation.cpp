@@ -194,11 +194,12 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
   }
   // With a mass blend: the blended mass's momentum (its kinetic energy) and the last forces.
   const double mass_blend = problem.element.mass_blend;
-  std::vector<double> px, py, fprev_x, fprev_y;
+  std::vector<double> px, py, fprev_x, fprev_y, blend_weight;
   if (mass_blend > 0) {
     px.resize(nn), py.resize(nn), fprev_x.assign(nn, 0.0), fprev_y.assign(nn, 0.0);
-    blended_momentum(geometry, problem.material.density_kg_m3, mass_blend, nn, mass.data(),
-                     free_x.data(), free_y.data(), vx.data(), vy.data(), px.data(), py.data());
+    blend_weight = consistent_mass_weights(geometry, problem.material.density_kg_m3);
+    blended_momentum(geometry, blend_weight.data(), mass_blend, nn, mass.data(), free_x.data(),
+                     free_y.data(), vx.data(), vy.data(), px.data(), py.data());
   }
 
   // Follower pressure: loaded edges and the nodes they touch.
@@ -371,8 +372,8 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
       const auto [e0, e1] = element_range(tid);
       NodeForce* out = threads > 1 ? thread_force[tid].data() : force.data();
       if (threads == 1) std::fill(out, out + nn, NodeForce{});  // else cleared by sum_threads
-      accumulate_consistent_mass_difference(geometry, problem.material.density_kg_m3, ax.data(),
-                                            ay.data(), e0, e1, out);
+      accumulate_consistent_mass_difference(geometry, blend_weight.data(), ax.data(), ay.data(), e0,
+                                            e1, out);
     };
     auto correct_blend = [&](int tid) {
       const auto [n0, n1] = node_range(tid);
