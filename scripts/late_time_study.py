@@ -8,8 +8,9 @@ Reads WORKDIR/<run>/result.h5 and WORKDIR/<run>/summary.json for the runs the dr
   before_<N>              (optional: the same baseline from a solver before the late-time work)
   seed<m>_<N>             (1 % of mode m in the pulse, smooth rim, 450 ns)
   pbar_<P>, beta<b>_*     (stronger pulses; other element stabilisations)
-  blend_<N>, blendseed<m>_<N>  (optional: the default and the seeded runs with
-                          element.mass_blend = 0.5; blend_264000 their A-bar(t) reference)
+  lumped_<N>, lumpedseed<m>_<N>  (optional: the default and the seeded runs with the lumped
+                          mass, element.mass_blend = 0, the default before 2026-12-02 evening;
+                          lumped_264000 their A-bar(t) reference)
 and prints markdown tables (docs/verification.md quotes them).
 """
 import json
@@ -277,13 +278,13 @@ def main():
     abar_table(work)
     print("\n## Seeded growth\n")
     convergence_table(work)
-    if os.path.exists(os.path.join(work, "blend_264000", "result.h5")):
-        print("\n## The mass blend (element.mass_blend = 0.5)\n")
-        robustness_table(work, kinds=("blend",))
+    if os.path.exists(os.path.join(work, "lumped_264000", "result.h5")):
+        print("\n## The lumped mass (element.mass_blend = 0)\n")
+        robustness_table(work, kinds=("lumped",))
         print()
-        abar_table(work, kind="blend")
+        abar_table(work, kind="lumped")
         print()
-        convergence_table(work, prefix="blendseed")
+        convergence_table(work, prefix="lumpedseed")
     print("\n## Stronger pulses (16.5k, 800 ns)\n")
     pbar_table(work)
     print("\n## The element stabilisation beta (16.5k and 66k, 800 ns)\n")
