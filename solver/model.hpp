@@ -51,9 +51,9 @@ struct Element {
   // nodes' (the element-level volume modes nodal pressures leave free; nodal_pressure.hpp).
   // The spec's default (run_spec.cpp); docs/verification.md says why this value.
   double stabilization = 0.01;
-  // alpha: weight of the consistent mass in the nodal mass (0 = lumped). The accelerations get one
-  // explicit correction towards (1 - alpha) M_L + alpha M_C (integrator.hpp, docs/model.md "Mass
-  // blend").
+  // alpha: weight of the consistent mass in the nodal mass (0 = lumped; default 1/2, the average
+  // of the two). The accelerations get one explicit correction towards (1 - alpha) M_L + alpha M_C
+  // (integrator.hpp, docs/model.md "Mass blend"; docs/verification.md says why this value).
   double mass_blend = 0.5;
 };
 
