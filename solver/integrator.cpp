@@ -93,14 +93,17 @@ void blended_momentum(const ElementGeometry& geometry, const double* weight, dou
   }
 }
 
-__attribute__((target_clones("avx512f", "avx2", "default"))) void advance_blended_momentum(
+__attribute__((target_clones("avx512f", "avx2", "default"))) void correct_nodes_blended(
     double dt, std::size_t begin, std::size_t end, const NodeForce* __restrict force,
     const double* __restrict fext_x, const double* __restrict fext_y,
-    const uint8_t* __restrict free_x, const uint8_t* __restrict free_y, double* __restrict fprev_x,
-    double* __restrict fprev_y, double* __restrict px, double* __restrict py) {
+    const uint8_t* __restrict free_x, const uint8_t* __restrict free_y,
+    const double* __restrict mass, double* __restrict ax, double* __restrict ay,
+    double* __restrict fprev_x, double* __restrict fprev_y, double* __restrict px,
+    double* __restrict py) {
   for (std::size_t i = begin; i < end; ++i) {
     const double fx = free_x[i] * (force[i].lanes[0] + fext_x[i]);
     const double fy = free_y[i] * (force[i].lanes[1] + fext_y[i]);
+    ax[i] = fx / mass[i], ay[i] = fy / mass[i];
     px[i] += 0.5 * dt * (fprev_x[i] + fx), py[i] += 0.5 * dt * (fprev_y[i] + fy);
     fprev_x[i] = fx, fprev_y[i] = fy;
   }

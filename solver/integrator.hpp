@@ -37,6 +37,17 @@ std::vector<double> consistent_mass_weights(const ElementGeometry& geometry, dou
 void accumulate_consistent_mass_difference(const ElementGeometry& geometry, const double* weight,
                                            const double* ax, const double* ay, std::size_t begin,
                                            std::size_t end, NodeForce* difference);
+// The blend's corrector, first half, over nodes [begin, end): the lumped a_L = free (f + f_ext) /
+// m into ax, ay, the velocities left for correct_mass_blend; and the blended mass's momentum p +=
+// dt/2 (f_prev + f) with f = free (f + f_ext), f_prev = f (velocity Verlet's v+ = v + dt/2 K
+// (f_prev + f), so p = K^-1 v exactly).
+void correct_nodes_blended(double dt, std::size_t begin, std::size_t end,
+                           const NodeForce* __restrict force, const double* __restrict fext_x,
+                           const double* __restrict fext_y, const uint8_t* __restrict free_x,
+                           const uint8_t* __restrict free_y, const double* __restrict mass,
+                           double* __restrict ax, double* __restrict ay, double* __restrict fprev_x,
+                           double* __restrict fprev_y, double* __restrict px,
+                           double* __restrict py);
 // Over nodes [begin, end): a -= alpha free (M_C - M_L) a_L / m (difference as above); v += dt/2 a.
 void correct_mass_blend(double dt, double alpha, std::size_t begin, std::size_t end,
                         const NodeForce* __restrict difference, const uint8_t* __restrict free_x,
@@ -47,19 +58,11 @@ void correct_mass_blend(double dt, double alpha, std::size_t begin, std::size_t 
 // K f on the free components: K = (I + alpha M_L^-1 (M_L - M_C)) M_L^-1). The work of the forces
 // changes 1/2 v^T K^-1 v, the kinetic energy the diagnostics report. From v by the series
 // K^-1 = M_L sum_k (-alpha M_L^-1 (M_L - M_C))^k (ratio at most 3 alpha / 4), summed to round-off:
-// once, for an initial velocity field; the integrator then keeps p by advance_blended_momentum.
+// once, for an initial velocity field; the integrator then keeps p by correct_nodes_blended.
 void blended_momentum(const ElementGeometry& geometry, const double* weight, double alpha,
                       std::size_t nodes, const double* mass, const uint8_t* free_x,
                       const uint8_t* free_y, const double* vx, const double* vy, double* px,
                       double* py);
-// Over nodes [begin, end): p += dt/2 (f_prev + f), f = free (f_int + f_ext) this evaluation's
-// forces; f_prev = f. Velocity Verlet's v+ = v + dt/2 K (f_prev + f), so p = K^-1 v exactly.
-void advance_blended_momentum(double dt, std::size_t begin, std::size_t end,
-                              const NodeForce* __restrict force, const double* __restrict fext_x,
-                              const double* __restrict fext_y, const uint8_t* __restrict free_x,
-                              const uint8_t* __restrict free_y, double* __restrict fprev_x,
-                              double* __restrict fprev_y, double* __restrict px,
-                              double* __restrict py);
 // The corrected accelerations are (I + alpha S) a_L with S = M_L^-1 (M_L - M_C), whose eigenvalues
 // lie in [0, 3/4] (each element's: 0, 3/4, 3/4), so the stable step shrinks by at most this factor.
 inline double mass_blend_step_factor(double alpha) {

@@ -358,13 +358,13 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
       const auto [n0, n1] = node_range(tid);
       if (threads > 1) sum_threads(thread_force, n0, n1, force.data());
       // With a mass blend the velocities wait for the corrected accelerations (correct_blend).
-      correct_nodes(mass_blend > 0 ? 0.0 : dt, n0, n1, force.data(), fext_x.data(), fext_y.data(),
-                    free_x.data(), free_y.data(), mass.data(), ax.data(), ay.data(), vx.data(),
-                    vy.data());
       if (mass_blend > 0)
-        advance_blended_momentum(dt, n0, n1, force.data(), fext_x.data(), fext_y.data(),
-                                 free_x.data(), free_y.data(), fprev_x.data(), fprev_y.data(),
-                                 px.data(), py.data());
+        correct_nodes_blended(dt, n0, n1, force.data(), fext_x.data(), fext_y.data(), free_x.data(),
+                              free_y.data(), mass.data(), ax.data(), ay.data(), fprev_x.data(),
+                              fprev_y.data(), px.data(), py.data());
+      else
+        correct_nodes(dt, n0, n1, force.data(), fext_x.data(), fext_y.data(), free_x.data(),
+                      free_y.data(), mass.data(), ax.data(), ay.data(), vx.data(), vy.data());
     };
     // The mass blend (integrator.hpp): an element pass over the lumped accelerations, summed in
     // the force arrays (free again once the accelerations are made), then the node correction.
