@@ -99,13 +99,23 @@ double crest(const History& h, int m, double t0, double t1) {
   return a;
 }
 
-// The issue's growth factor G_m(t) = A_m(t) / A_m(70 ns) on 16.5k and 66k, printed.
+// The issue's growth factor G_m(t) = A_m(t) / A_m(70 ns) of the 264k-element runs, the reference
+// the issue measures against (scripts/late-time-study, 2026-12-02 17:00-17:05 UTC;
+// docs/verification.md, "Seeded growth": the default, mass blend 1/2; the lumped mass's 264k runs
+// agree within 0.6 %). Too long for CI (~4 min each), so their figures stand in here.
+struct GrowthReference {
+  double t, g8, g16;
+};
+constexpr GrowthReference kReference264k[] = {{250e-9, 1.535, 3.879}, {450e-9, 11.694, 50.369}};
+
+// G_m(t) on 16.5k and 66k, printed with their distance from the 264k reference; returns them.
 std::pair<double, double> growth_factors(const History& coarse, const History& fine, int m,
-                                         double t) {
+                                         double t, double reference) {
   const double g_coarse = mode_at(coarse, m, t) / mode_at(coarse, m, 70e-9);
   const double g_fine = mode_at(fine, m, t) / mode_at(fine, m, 70e-9);
-  std::printf("G_%d(%.0f ns): 16.5k %.3f, 66k %.3f (%.1f %%)\n", m, t * 1e9, g_coarse, g_fine,
-              100 * (g_coarse - g_fine) / g_fine);
+  std::printf("G_%d(%.0f ns): 16.5k %.3f (%+.1f %% from 264k), 66k %.3f (%+.1f %%), 264k %.3f\n", m,
+              t * 1e9, g_coarse, 100 * (g_coarse / reference - 1), g_fine,
+              100 * (g_fine / reference - 1), reference);
   return {g_coarse, g_fine};
 }
 
@@ -125,14 +135,13 @@ std::vector<double> expect_crests_agree(const History& coarse, const History& fi
   return fine_crests;
 }
 
-// Seeded mode m = 8 on 16.5k against 66k (the study, scripts/late-time-study, finds 66k within
-// 3 % of 264k on every figure here, so 66k stands in for it). The issue's growth factor
-// G_8(t) = A_8(t) / A_8(70 ns) at 250 and 450 ns agrees within its 15 %. 250 ns is 11 ns before
-// the mode's inversion at ~261 ns, on its steepest descent, where a fraction of a nanosecond in
-// the arrival of the shock moves it by ~10 %: with the default mass blend 16.5k is +6.7 % from 66k
-// (+9.4 % from 264k); with the lumped mass it was +16 % (+18.5 %) and this test failed. The crests
-// of the two growth cycles (150-245 ns and 350-445 ns), where the amplitude is stationary, must
-// agree within the same 15 %.
+// Seeded mode m = 8: the issue's growth factor G_8 at 250 and 450 ns within 5 % of the 264k
+// reference on 66k and within 15 % on 16.5k (the issue's bounds). 250 ns is 11 ns before the
+// mode's inversion at ~261 ns, on its steepest descent, where a fraction of a nanosecond in the
+// arrival of the shock moves it by ~10 %: with the default mass blend 16.5k is +9.4 % (66k +2.5 %);
+// with the lumped mass it was +18.5 % and this test fails. The crests of the two growth cycles
+// (150-245 ns and 350-445 ns), where the amplitude is stationary, must agree within the same 15 %
+// between 16.5k and 66k.
 // A rim of N nodes resolves the Fourier modes up to (N - 1) / 2: mode N - m takes the same values
 // at the nodes as mode m, so computing it would report mode m's amplitude a second time (the
 // default run on a 268-element disk, 38 rim nodes, ended with modes 5 and 33 equal and the summary
@@ -169,28 +178,33 @@ TEST(LateTimeVerification, SeededModeEightGrowthConvergesUnderRefinement) {
   const RunResult& fine = seeded_run(66000, 8, 450e-9);
   ASSERT_EQ(coarse.status, RunStatus::kCompleted) << coarse.error;
   ASSERT_EQ(fine.status, RunStatus::kCompleted) << fine.error;
-  for (double t : {250e-9, 450e-9}) {
-    const auto [g_coarse, g_fine] = growth_factors(coarse.history, fine.history, 8, t);
+  for (const GrowthReference& ref : kReference264k) {
+    const auto [g_coarse, g_fine] = growth_factors(coarse.history, fine.history, 8, ref.t, ref.g8);
     EXPECT_GT(g_fine, 1.0) << "the seeded mode grows";
-    EXPECT_NEAR(g_coarse, g_fine, 0.15 * g_fine) << "at " << t * 1e9 << " ns";
+    EXPECT_NEAR(g_fine, ref.g8, 0.05 * ref.g8) << "66k at " << ref.t * 1e9 << " ns";
+    EXPECT_NEAR(g_coarse, ref.g8, 0.15 * ref.g8) << "16.5k at " << ref.t * 1e9 << " ns";
   }
   expect_crests_agree(coarse.history, fine.history, 8, {{150e-9, 245e-9}, {350e-9, 445e-9}});
 }
 
 // Seeded mode m = 16 (19 elements per wavelength at the rim on 16.5k): the crests of its two
-// growth cycles agree within 15 % between 16.5k and 66k (the study: 66k within 1 % of 264k).
-// The issue's G_16 at 250 / 450 ns is printed: 250 ns is 5 ns after the inversion at ~245 ns and
-// 70 ns 8 ns before the one at ~78 ns, where the amplitude is near zero, so those ratios measure
-// the phase more than the growth (from 264k with the default mass blend: 16.5k -25 % / -16 %, 66k
-// -4 % / +1 %; lumped 16.5k -39 % / -28 %: docs/verification.md). With the stiffer element
-// stabilisation used before (beta = 0.2) the second crest on 16.5k fell 23 % short: the test tells
-// them apart.
+// growth cycles agree within 15 % between 16.5k and 66k (the study: 66k within 1 % of 264k), and
+// the issue's G_16 at 250 / 450 ns is within its 5 % of the 264k reference on 66k (-4.1 / +0.6 %;
+// lumped -7.0 % at 250 ns, and this test fails). On 16.5k G_16 is printed, not asserted: the
+// issue's 15 % is not met there (-24.9 / -16.2 %; lumped -39 / -28 %; docs/verification.md). 250
+// ns is 5 ns after the inversion at ~245 ns and 70 ns 8 ns before the one at ~78 ns, where the
+// amplitude is near zero, so those ratios measure the phase more than the growth. With the stiffer
+// element stabilisation used before (beta = 0.2) the second crest on 16.5k fell 23 % short: the
+// test tells them apart.
 TEST(LateTimeVerification, SeededModeSixteenCrestsConvergeUnderRefinement) {
   const RunResult& coarse = seeded_run(16500, 16, 450e-9);
   const RunResult& fine = seeded_run(66000, 16, 450e-9);
   ASSERT_EQ(coarse.status, RunStatus::kCompleted) << coarse.error;
   ASSERT_EQ(fine.status, RunStatus::kCompleted) << fine.error;
-  for (double t : {250e-9, 450e-9}) growth_factors(coarse.history, fine.history, 16, t);
+  for (const GrowthReference& ref : kReference264k) {
+    const double g_fine = growth_factors(coarse.history, fine.history, 16, ref.t, ref.g16).second;
+    EXPECT_NEAR(g_fine, ref.g16, 0.05 * ref.g16) << "66k at " << ref.t * 1e9 << " ns";
+  }
   const auto crests =
       expect_crests_agree(coarse.history, fine.history, 16, {{150e-9, 240e-9}, {350e-9, 440e-9}});
   for (double a_fine : crests) {
