@@ -393,12 +393,7 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
       work(0);
       kernel_seconds[0] += thread_cpu_seconds() - start;
       correct(0);
-      if (mass_blend > 0) {
-        const double blend_start = thread_cpu_seconds();  // the blend's element pass is kernel work
-        blend_difference(0);
-        kernel_seconds[0] += thread_cpu_seconds() - blend_start;
-        correct_blend(0);
-      }
+      if (mass_blend > 0) timed(0, blend_difference), correct_blend(0);
     } else {
 #pragma omp parallel num_threads(threads)
       {

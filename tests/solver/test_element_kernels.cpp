@@ -504,9 +504,8 @@ TEST(MassBlend, MomentumInvertsTheBlendedOperator) {
   KernelFixture fx(mesh_disk_rings(90e-6, 300));
   const std::size_t nn = fx.mesh.node_count(), ne = fx.mesh.element_count();
   const double density = 1000.0;
-  std::vector<double> mass(nn, 0.0);
-  for (std::size_t e = 0; e < ne; ++e)
-    for (int32_t i : fx.mesh.triangles[e]) mass[i] += density * fx.g.area0[e] / 3.0;
+  std::vector<double> mass = reference_nodal_areas(fx.g, nn);  // lumped: rho x a third of each area
+  for (double& m : mass) m *= density;
   std::vector<uint8_t> free_x(nn, 1), free_y(nn, 1);
   std::vector<double> vx(nn), vy(nn);
   uint64_t state = 12345;  // a fixed pseudo-random field, grid-scale content included
@@ -700,9 +699,10 @@ TEST(StableStep, LiesWithinTheCentralDifferenceLimitOfTheAssembledOperator) {
       // factor rests on the bound omega_max <= sqrt(1 + 3 alpha / 4) x the lumped one, checked too
       // (measured: P1 1.155 at alpha = 1/2, where the bound is 1.169; 1/sqrt(1 + alpha / 4) fails).
       Eigen::MatrixXd consistent = Eigen::MatrixXd::Zero(dofs, dofs);
+      const std::vector<double> weight = consistent_mass_weights(fx.g, fx.p.rho0);
       for (std::size_t e = 0; e < fx.g.size(); ++e) {
         const int32_t n[3] = {fx.g.node0[e], fx.g.node1[e], fx.g.node2[e]};
-        const double w = fx.p.rho0 * fx.g.area0[e] / 12.0;
+        const double w = weight[e];
         for (int r = 0; r < 3; ++r)
           for (int c = 0; c < 3; ++c)
             for (int axis = 0; axis < 2; ++axis)
