@@ -31,13 +31,13 @@ TEST(RunSpec, DefaultsAreTheThesisBaseline) {
   EXPECT_DOUBLE_EQ(s.load().duration(), 8e-9);
   EXPECT_EQ(s.load().shape(), v1::SQUARE);
   EXPECT_DOUBLE_EQ(s.run().end_time(), 800e-9);
-  EXPECT_DOUBLE_EQ(s.run().cfl(), 0.7);  // the thesis ran 0.5 (examples/thesis_p1.json)
+  EXPECT_DOUBLE_EQ(s.run().cfl(), 0.75);  // the thesis ran 0.5 (examples/thesis_p1.json)
   EXPECT_DOUBLE_EQ(s.run().history_interval(), 1e-9);
   EXPECT_EQ(s.run().modes(), 64);
   EXPECT_EQ(s.run().threads(), 1);
   EXPECT_DOUBLE_EQ(s.run().max_aspect_ratio(), 100);  // not the thesis's: it had no such stop
   EXPECT_DOUBLE_EQ(make_options(s).max_aspect_ratio, 100);
-  EXPECT_EQ(s.element().mass_blend(), 0.5);  // the average mass, written into the spec
+  EXPECT_EQ(s.element().mass_blend(), 1.0);  // one step towards the consistent mass
   EXPECT_EQ(make_problem(normalize_spec(parse_spec_json(R"({"geometry":{"target_elements":300},
       "element":{"mass_blend":0}})")))
                 .element.mass_blend,
