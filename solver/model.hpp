@@ -99,9 +99,10 @@ struct Problem {
   double center_region_radius_m = 5e-6;  // "centre" = elements with centroid this close
 };
 
+// The defaults here are also the spec's (run_spec.cpp), but max_aspect_ratio (the spec's is 100).
 struct SolverOptions {
   double end_time_s = 800e-9;
-  double cfl = 0.75;  // the spec's default (run_spec.cpp); docs/model.md, "Time integration"
+  double cfl = 0.75;  // docs/model.md, "Time integration"
   double history_interval_s = 1e-9;
   double output_interval_s = 20e-9;  // <= 0: no field frames
   // Fourier modes 0..modes of the rim radial displacement (fewer on a rim of fewer than
