@@ -323,6 +323,13 @@ int cmd_summary(const GlobalOptions& g, const ParsedArgs& a) {
                  " ns per element-step (element loop alone, CPU time)");
     }
   }
+  if (s.wall_time() > 0 && (s.diagnostics_time() > 0 || s.output_time() > 0)) {
+    kv.add("diagnostics", fmt_num(s.diagnostics_time(), 3) + " s (" +
+                              fmt_num(100 * s.diagnostics_share(), 3) +
+                              " % of the run: history samples and frame fields)");
+    kv.add("output", fmt_num(s.output_time(), 3) + " s (" + fmt_num(100 * s.output_share(), 3) +
+                         " % of the run: frames handed to the writer thread)");
+  }
   if (!s.mesh_cache().empty()) {
     kv.add("meshing", fmt_num(s.meshing_time(), 3) + " s (" +
                           fmt_num(100 * s.meshing_time() / (s.meshing_time() + s.wall_time()), 3) +

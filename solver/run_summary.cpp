@@ -61,9 +61,19 @@ double RunSummary::meshing_share() const {
   return total > 0 ? meshing_time_s / total : std::nan("");
 }
 
+double RunSummary::diagnostics_share() const {
+  return wall_time_s > 0 ? diagnostics_time_s / wall_time_s : std::nan("");
+}
+
+double RunSummary::output_share() const {
+  return wall_time_s > 0 ? output_time_s / wall_time_s : std::nan("");
+}
+
 RunSummary summarize(const Problem& problem, const RunResult& r) {
   RunSummary s;
   s.kernel_time_s = r.kernel_time_s;
+  s.diagnostics_time_s = r.diagnostics_time_s;
+  s.output_time_s = r.output_time_s;
   const History& h = r.history;
   s.elements = problem.mesh.element_count();
   s.nodes = problem.mesh.node_count();
@@ -171,6 +181,10 @@ std::string summary_to_json(const RunSummary& s) {
   o << "],\"min_dt_s\":" << number(s.min_dt_s) << ",\"max_dt_s\":" << number(s.max_dt_s)
     << ",\"kernel_time_s\":" << number(s.kernel_time_s) << ",\"grind_ns\":" << number(s.grind_ns())
     << ",\"kernel_grind_ns\":" << number(s.kernel_grind_ns())
+    << ",\"diagnostics_time_s\":" << number(s.diagnostics_time_s)
+    << ",\"diagnostics_share\":" << number(s.diagnostics_share())
+    << ",\"output_time_s\":" << number(s.output_time_s)
+    << ",\"output_share\":" << number(s.output_share())
     << ",\"meshing_time_s\":" << number(s.meshing_time_s)
     << ",\"meshing_share\":" << number(s.meshing_share()) << ",\"mesh_cache\":\"" << s.mesh_cache
     << "\"}";

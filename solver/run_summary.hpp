@@ -62,15 +62,21 @@ struct RunSummary {
   // other processes on the cores; wall_time_s is not).
   // meshing_time_s and mesh_cache ("hit", "miss", "replaced", "not-used") describe the mesh before
   // the run; summarize() cannot know them, the caller sets them.
+  // diagnostics_time_s and output_time_s: the solver thread's wall time in history samples and
+  // frames' fields, and in handing frames to the writer (RunResult), parts of wall_time_s.
   double kernel_time_s = 0;
+  double diagnostics_time_s = 0, output_time_s = 0;
   double meshing_time_s = 0;
   std::string mesh_cache = "not-used";
 
   // Nanoseconds per element-step of the whole run (wall time) and of the element loop alone (CPU);
-  // the share of meshing in meshing + run. NaN when undefined (no steps).
+  // the share of meshing in meshing + run, and of diagnostics and output in the run's wall time.
+  // NaN when undefined (no steps; no time).
   double grind_ns() const;
   double kernel_grind_ns() const;
   double meshing_share() const;
+  double diagnostics_share() const;
+  double output_share() const;
 };
 
 RunSummary summarize(const Problem& problem, const RunResult& result);

@@ -496,7 +496,13 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
   // cancellation -- gets them from one more pass over a copy of the element state and the nodal
   // passes (the sums depend on the positions alone).
   bool totals_sampled = true;
+  // Wall time of the solver's thread in diagnostics (history samples, frames' fields) and in
+  // handing frames to the writer (RunResult): where a run's time goes beside the kernel.
+  auto seconds_since = [](std::chrono::steady_clock::time_point start) {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  };
   auto sample_history = [&] {
+    const auto start = std::chrono::steady_clock::now();
     if (!totals_sampled) {
       ElementState scratch = elements;
       KernelParams sums_only = params;
@@ -520,6 +526,16 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
     result.history.min_dt.push_back(interval_min_dt);
     result.history.min_dt_element.push_back(static_cast<double>(interval_min_element));
     interval_min_dt = std::numeric_limits<double>::infinity(), interval_min_element = -1;
+    result.diagnostics_time_s += seconds_since(start);
+  };
+  auto write_frame = [&] {
+    const auto start = std::chrono::steady_clock::now();
+    FieldFrame frame = diagnostics.frame(view, elements, kernel_view, t);
+    const auto handed = std::chrono::steady_clock::now();
+    result.diagnostics_time_s += std::chrono::duration<double>(handed - start).count();
+    control.on_frame(std::move(frame));
+    result.output_time_s += seconds_since(handed);
+    ++result.frames_written;
   };
   // Whether the sample just taken has an element beyond the mesh's regime (max_aspect_ratio): the
   // run stops there as failed, with its history and a last frame kept.
@@ -539,10 +555,7 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
   };
   sample_history();
   if (mesh_distorted()) return result;
-  if (options.output_interval_s > 0 && control.on_frame) {
-    control.on_frame(diagnostics.frame(view, elements, kernel_view, t));
-    ++result.frames_written;
-  }
+  if (options.output_interval_s > 0 && control.on_frame) write_frame();
 
   Schedule schedule{options.history_interval_s, options.output_interval_s, options.end_time_s};
   const double tiny = 1e-9 * dt_stable;
@@ -617,8 +630,7 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
     if (options.output_interval_s > 0 && t >= schedule.next_output_time() - tiny) {
       while (schedule.next_output_time() <= t + tiny) ++schedule.next_output;
       if (control.on_frame) {
-        control.on_frame(diagnostics.frame(view, elements, kernel_view, t));
-        ++result.frames_written;
+        write_frame();
         last_frame_time = t;
       }
     }
@@ -635,10 +647,8 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
   const bool state_valid =
       result.status != RunStatus::kFailed || result.failure == FailureKind::kMeshDistortion;
   if (options.output_interval_s > 0 && control.on_frame && last_frame_time < t - tiny &&
-      steps > 0 && state_valid) {
-    control.on_frame(diagnostics.frame(view, elements, kernel_view, t));
-    ++result.frames_written;
-  }
+      steps > 0 && state_valid)
+    write_frame();
   result.steps = steps;
   result.kernel_time_s = *std::max_element(kernel_seconds.begin(), kernel_seconds.end());
   result.wall_time_s =

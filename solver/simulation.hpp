@@ -100,6 +100,10 @@ struct RunResult {
   // The kernel: CPU time in the nodal passes and compute_element_forces over the steps (the
   // busiest thread's), for the summary's kernel grind time beside the whole run's wall time.
   double kernel_time_s = 0;
+  // Wall time of the solver's thread in diagnostics (history samples and the fields of frames;
+  // the sample sums the element loop adds are the kernel's) and in output (handing frames to
+  // RunControl::on_frame: with a writer thread, the copy and any wait while its queue is full).
+  double diagnostics_time_s = 0, output_time_s = 0;
   double min_dt_s = 0, max_dt_s = 0;
   std::size_t frames_written = 0;
 };

@@ -124,6 +124,9 @@ RunSummary parse_summary_json(const std::string& json) {
   r.max_dt_s = json_number(s, "max_dt_s");
   // Absent in results written before they were added: 0, not NaN.
   if (f.find("kernel_time_s") != f.end()) r.kernel_time_s = json_number(s, "kernel_time_s");
+  if (f.find("diagnostics_time_s") != f.end())
+    r.diagnostics_time_s = json_number(s, "diagnostics_time_s");
+  if (f.find("output_time_s") != f.end()) r.output_time_s = json_number(s, "output_time_s");
   if (f.find("meshing_time_s") != f.end()) r.meshing_time_s = json_number(s, "meshing_time_s");
   if (f.find("mesh_cache") != f.end()) r.mesh_cache = text("mesh_cache");
   auto optional = [&](const char* key, double& out) {

@@ -176,6 +176,12 @@ ALTER TABLE job_summaries ADD COLUMN aspect_ratio_above_10 REAL NOT NULL DEFAULT
     R"sql(
 ALTER TABLE job_summaries ADD COLUMN solver_revision INTEGER NOT NULL DEFAULT 0;
 )sql",
+    // 6 -> 7: the rest of where a run's time went (RunSummary): the solver thread's wall time in
+    // diagnostics and in handing frames to the writer. Older rows: 0.
+    R"sql(
+ALTER TABLE job_summaries ADD COLUMN diagnostics_time REAL NOT NULL DEFAULT 0;
+ALTER TABLE job_summaries ADD COLUMN output_time REAL NOT NULL DEFAULT 0;
+)sql",
 };
 
 }  // namespace

@@ -77,7 +77,7 @@ using SS = StoredSummary;
 
 // The run's figures: job_summaries' columns for RunSummary (every one of its fields but none
 // of the decimated series).
-const std::array<Column<RS>, 33> kFigures = {{
+const std::array<Column<RS>, 35> kFigures = {{
     count<RS, &RS::elements>("elements"),
     count<RS, &RS::nodes>("nodes"),
     count<RS, &RS::steps>("steps"),
@@ -111,6 +111,8 @@ const std::array<Column<RS>, 33> kFigures = {{
     figure<RS, &RS::max_aspect_ratio>("max_aspect_ratio"),
     figure<RS, &RS::aspect_ratio_above_10_s>("aspect_ratio_above_10"),
     count<RS, &RS::solver_revision>("solver_revision"),
+    figure<RS, &RS::diagnostics_time_s>("diagnostics_time"),
+    figure<RS, &RS::output_time_s>("output_time"),
 }};
 
 // The decimated series a StoredSummary adds: heavy, so read only where they are needed.

@@ -151,6 +151,10 @@ void fill_summary(const std::string& id, const RunSummary& s, v1::JobSummary* re
   resp->set_max_aspect_ratio(s.max_aspect_ratio);
   resp->set_aspect_ratio_above_10(s.aspect_ratio_above_10_s);
   resp->set_solver_revision(s.solver_revision);
+  resp->set_diagnostics_time(s.diagnostics_time_s);
+  resp->set_diagnostics_share(s.diagnostics_share());
+  resp->set_output_time(s.output_time_s);
+  resp->set_output_share(s.output_share());
 }
 
 Status check_request_id_and_labels(const std::string& request_id,

@@ -55,6 +55,8 @@ class CliWorkflowTest(DaemonTestCase):
             self.assertTrue(line.rstrip().endswith(unit), line)
         self.assertIn("kernel grind time:", summary_text)
         self.assertRegex(summary_text, r"meshing: .* s \(.* % of meshing \+ run; mesh cache: ")
+        self.assertRegex(summary_text, r"diagnostics: .* s \(.* % of the run: history samples")
+        self.assertRegex(summary_text, r"output: .* s \(.* % of the run: frames handed to")
         summary = self.cli_json("summary", job_id)
         self.assertGreater(int(summary["elements"]), 200)
         self.assertGreater(int(summary["steps"]), 0)

@@ -40,6 +40,9 @@ class PythonClientTest(DaemonTestCase):
         self.assertLess(summary["kernel_grind_time"], summary["grind_time"])
         self.assertIn(summary["mesh_cache"], ("hit", "miss"))
         self.assertTrue(0 <= summary["meshing_share"] < 1)
+        self.assertTrue(0 < summary["diagnostics_share"] < 1)
+        self.assertTrue(0 <= summary["output_share"] < 1)
+        self.assertLess(summary["diagnostics_time"] + summary["output_time"], summary["wall_time"])
         # Provenance: the solver revision that computed it (0 only for results from before).
         self.assertGreaterEqual(summary["solver_revision"], 1)
 

@@ -127,6 +127,15 @@ class SoftshockSolve(unittest.TestCase):
                                    s["kernel_time_s"] / (s["steps"] * s["elements"]) * 1e9)
             self.assertGreater(s["grind_ns"], s["kernel_grind_ns"])
             self.assertTrue(0 < s["meshing_share"] < 1)
+            # The rest of the run: history samples and frame fields, frames handed to the writer
+            # (two frames here, 0 and 20 ns), disjoint parts of its wall time.
+            self.assertGreater(s["diagnostics_time_s"], 0)
+            self.assertGreater(s["output_time_s"], 0)
+            self.assertLess(s["kernel_time_s"] + s["diagnostics_time_s"] + s["output_time_s"],
+                            s["wall_time_s"])
+            self.assertAlmostEqual(s["output_share"], s["output_time_s"] / s["wall_time_s"])
+            self.assertAlmostEqual(s["diagnostics_share"],
+                                   s["diagnostics_time_s"] / s["wall_time_s"])
         self.assertLess(b["meshing_time_s"], a["meshing_time_s"])
 
     def test_invalid_spec_exits_2_naming_the_field(self):

@@ -45,12 +45,12 @@ class CatalogueTest : public ::testing::Test {
 TEST_F(CatalogueTest, MigrationsAreIdempotentAndDataSurvivesReopen) {
   {
     Catalogue c(path_);
-    EXPECT_EQ(c.schema_version(), 6);
+    EXPECT_EQ(c.schema_version(), 7);
     c.insert(job("a", 3, 0, {{"study", "s1"}}));
   }
   for (int i = 0; i < 2; ++i) {
     Catalogue c(path_);
-    EXPECT_EQ(c.schema_version(), 6);
+    EXPECT_EQ(c.schema_version(), 7);
     auto a = c.get("a");
     ASSERT_TRUE(a);
     EXPECT_EQ(a->state, JobState::kQueued);
@@ -89,6 +89,8 @@ StoredSummary distinct_summary() {
   r.status = "completed";
   r.error = "error text";
   r.kernel_time_s = 1.31;
+  r.diagnostics_time_s = 1.42;
+  r.output_time_s = 1.43;
   r.meshing_time_s = 1.32;
   r.mesh_cache = "hit";
   r.solver_revision = 133;
@@ -141,6 +143,8 @@ void expect_same_figures(const RunSummary& a, const RunSummary& b) {
   EXPECT_EQ(a.status, b.status);
   EXPECT_EQ(a.error, b.error);
   expect_same(a.kernel_time_s, b.kernel_time_s, "kernel_time_s");
+  expect_same(a.diagnostics_time_s, b.diagnostics_time_s, "diagnostics_time_s");
+  expect_same(a.output_time_s, b.output_time_s, "output_time_s");
   expect_same(a.meshing_time_s, b.meshing_time_s, "meshing_time_s");
   EXPECT_EQ(a.mesh_cache, b.mesh_cache);
   EXPECT_EQ(a.solver_revision, b.solver_revision);

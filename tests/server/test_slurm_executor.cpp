@@ -54,6 +54,8 @@ TEST(SlurmStates, SummaryJsonRoundTrip) {
   s.max_abar = 0.0123456789;
   s.dominant_mode_end = 6;
   s.rim_reflections_s = {1e-9, 3e-9};
+  s.wall_time_s = 2.0, s.kernel_time_s = 1.25, s.diagnostics_time_s = 0.25;
+  s.output_time_s = 0.125;
   const RunSummary r = parse_summary_json(summary_to_json(s));
   EXPECT_EQ(r.status, s.status);
   EXPECT_EQ(r.error, s.error);
@@ -67,6 +69,11 @@ TEST(SlurmStates, SummaryJsonRoundTrip) {
   EXPECT_EQ(r.dominant_mode_end, 6);
   EXPECT_EQ(r.rim_reflections_s.size(), 2u);
   EXPECT_EQ(r.solver_revision, kSolverRevision);
+  // Where the time went survives the trip (a Slurm job's summary is read back this way).
+  EXPECT_DOUBLE_EQ(r.kernel_time_s, 1.25);
+  EXPECT_DOUBLE_EQ(r.diagnostics_time_s, 0.25);
+  EXPECT_DOUBLE_EQ(r.output_time_s, 0.125);
+  EXPECT_DOUBLE_EQ(r.output_share(), 0.0625);
   // A summary written before revisions were recorded: 0, which no running solver has.
   EXPECT_EQ(parse_summary_json(R"({"elements": 412, "steps": 987})").solver_revision, 0);
 }

@@ -4,9 +4,11 @@
 
 #include <algorithm>
 #include <atomic>
+#include <chrono>
 #include <cmath>
 #include <numbers>
 #include <string>
+#include <thread>
 #include <utility>
 
 #include "solver/gmsh_mesher.hpp"
@@ -549,6 +551,31 @@ TEST(PhysicsValidation, MaxAspectRatioStopsTheRunAtTheFirstSampleBeyondIt) {
   const RunResult reached = run(largest, &reached_frame);
   EXPECT_EQ(reached.status, RunStatus::kCompleted) << reached.error;
   EXPECT_EQ(reached.history.size(), free.history.size());
+}
+
+// Where a run's time goes (RunResult, the summary's shares): handing a frame over counts as
+// output, however long the writer makes the solver wait -- here 20 ms a frame -- and the parts
+// are disjoint parts of the run's wall time. Without frames nothing counts as output.
+TEST(PhysicsValidation, TheRunAccountsForItsDiagnosticsAndOutputTime) {
+  const std::string run = R"({"geometry":{"target_elements":1000},"run":{"end_time":2e-8,)";
+  RunControl control;
+  control.on_frame = [](FieldFrame) { std::this_thread::sleep_for(std::chrono::milliseconds(20)); };
+  Problem problem;
+  const RunResult r = run_spec(
+      spec_from(run + R"("history_interval":1e-9,"output_interval":5e-9}})"), &problem, control);
+  ASSERT_EQ(r.status, RunStatus::kCompleted);
+  EXPECT_EQ(r.frames_written, 5u);  // 0, 5, 10, 15, 20 ns
+  EXPECT_GE(r.output_time_s, 5 * 0.020);
+  EXPECT_GT(r.diagnostics_time_s, 0.0);  // 21 history samples and 5 frames' fields
+  EXPECT_LE(r.kernel_time_s + r.diagnostics_time_s + r.output_time_s, r.wall_time_s);
+  const RunSummary s = summarize(problem, r);
+  EXPECT_DOUBLE_EQ(s.output_share(), r.output_time_s / r.wall_time_s);
+  EXPECT_DOUBLE_EQ(s.diagnostics_share(), r.diagnostics_time_s / r.wall_time_s);
+
+  const RunResult quiet = run_spec(spec_from(run + R"("output_interval":0}})"), nullptr, control);
+  EXPECT_EQ(quiet.frames_written, 0u);
+  EXPECT_EQ(quiet.output_time_s, 0.0);
+  EXPECT_GT(quiet.diagnostics_time_s, 0.0);
 }
 
 TEST(PhysicsValidation, CancellationStopsTheRun) {
