@@ -59,6 +59,13 @@ inline __attribute__((always_inline)) void element_fields(const ElementGeometry&
   constexpr std::size_t kBlock = 256;
   alignas(64) double e1x[kBlock], e1y[kBlock], e2x[kBlock], e2y[kBlock], cx[kBlock], cy[kBlock];
   const std::size_t ne = g.size();
+  // Plain pointers to the outputs: through fr's vectors the loop reloaded each one's data pointer
+  // per element and did not vectorise.
+  double *__restrict out_j = fr.J.data(), *__restrict out_aspect = fr.aspect_ratio.data(),
+                     *__restrict out_mean = fr.mean_stress.data(),
+                     *__restrict out_radial = fr.radial_stress.data(),
+                     *__restrict out_hoop = fr.hoop_stress.data(),
+                     *__restrict out_von_mises = fr.von_mises.data();
   for (std::size_t block = 0; block < ne; block += kBlock) {
     const std::size_t count = std::min(kBlock, ne - block);
     for (std::size_t k = 0; k < count; ++k) {
@@ -83,13 +90,13 @@ inline __attribute__((always_inline)) void element_fields(const ElementGeometry&
       const ElementStress st = cauchy_stress(f, sm, mu, s, e);
       const double r = std::sqrt(cx[k] * cx[k] + cy[k] * cy[k]);
       const double ex = r > 0 ? cx[k] / r : 1, ey = r > 0 ? cy[k] / r : 0;
-      fr.J[e] = st.j;
-      fr.aspect_ratio[e] = cm::aspect_ratio(e1x[k], e1y[k], e2x[k], e2y[k]);
-      fr.mean_stress[e] = st.mean();
-      fr.radial_stress[e] = ex * ex * st.xx + 2 * ex * ey * st.xy + ey * ey * st.yy;
-      fr.hoop_stress[e] = ey * ey * st.xx - 2 * ex * ey * st.xy + ex * ex * st.yy;
+      out_j[e] = st.j;
+      out_aspect[e] = cm::aspect_ratio(e1x[k], e1y[k], e2x[k], e2y[k]);
+      out_mean[e] = st.mean();
+      out_radial[e] = ex * ex * st.xx + 2 * ex * ey * st.xy + ey * ey * st.yy;
+      out_hoop[e] = ey * ey * st.xx - 2 * ex * ey * st.xy + ex * ex * st.yy;
       const double dxy = st.xx - st.yy, dyz = st.yy - st.zz, dzx = st.zz - st.xx;
-      fr.von_mises[e] = std::sqrt(0.5 * (dxy * dxy + dyz * dyz + dzx * dzx) + 3.0 * st.xy * st.xy);
+      out_von_mises[e] = std::sqrt(0.5 * (dxy * dxy + dyz * dyz + dzx * dzx) + 3.0 * st.xy * st.xy);
     }
   }
 }
@@ -102,6 +109,21 @@ __attribute__((target_clones("avx512f", "avx2", "default"))) void frame_element_
     element_fields<true>(g, nodes, s, volumetric, kappa, n, mu, ox, oy, fr);
   else
     element_fields<false>(g, nodes, s, volumetric, kappa, n, mu, ox, oy, fr);
+}
+
+// a[m] += w_k u_k cos(m theta_k), b[m] likewise with sin, over the rim nodes k in order: each
+// mode's sum is the scalar loop's to the bit (built without FMA contraction), the modes side by
+// side in the vector lanes (a scalar loop per mode was a chain of dependent adds, most of a
+// history sample's time).
+__attribute__((target_clones("avx512f", "avx2", "default"))) void fourier_sums(
+    std::size_t nodes, std::size_t modes, const double* weight, const double* u,
+    const double* node_cos, const double* node_sin, double* __restrict a, double* __restrict b) {
+  for (std::size_t k = 0; k < nodes; ++k) {
+    const double wu = weight[k] * u[k];
+    const double *c = node_cos + k * modes, *s = node_sin + k * modes;
+#pragma GCC ivdep
+    for (std::size_t m = 0; m < modes; ++m) a[m] += wu * c[m], b[m] += wu * s[m];
+  }
 }
 
 }  // namespace
@@ -146,12 +168,14 @@ Diagnostics::Diagnostics(const Problem& problem, const ElementGeometry& geometry
     if (span < 0) span += kTwoPi;         // the loop is counter-clockwise
     rim_weight_[k] = 0.5 * span;
   }
-  mode_cos_.resize((modes_ + 1) * nr);
-  mode_sin_.resize((modes_ + 1) * nr);
-  for (int m = 0; m <= modes_; ++m) {
+  const std::size_t count = static_cast<std::size_t>(modes_) + 1;
+  for (auto* v : {&mode_cos_, &mode_sin_, &node_cos_, &node_sin_}) v->resize(count * nr);
+  for (std::size_t m = 0; m < count; ++m) {
     for (std::size_t k = 0; k < nr; ++k) {
-      mode_cos_[m * nr + k] = std::cos(m * theta[k]);
-      mode_sin_[m * nr + k] = std::sin(m * theta[k]);
+      const double c = std::cos(static_cast<double>(m) * theta[k]);
+      const double sn = std::sin(static_cast<double>(m) * theta[k]);
+      mode_cos_[m * nr + k] = node_cos_[k * count + m] = c;
+      mode_sin_[m * nr + k] = node_sin_[k * count + m] = sn;
     }
   }
 
@@ -258,14 +282,13 @@ void Diagnostics::sample(const NodalView& nodes, const ElementState& s, const Ke
   // u_r rebuilt at the rim nodes from modes 0..kFilteredAbarModes gives the filtered A-bar.
   std::vector<double> amplitude(modes_ + 1);
   std::vector<double> ur_filtered(nr, 0.0);
+  std::vector<double> cos_sum(modes_ + 1, 0.0), sin_sum(modes_ + 1, 0.0);
+  fourier_sums(nr, cos_sum.size(), rim_weight_.data(), ur.data(), node_cos_.data(),
+               node_sin_.data(), cos_sum.data(), sin_sum.data());
   for (int m = 0; m <= modes_; ++m) {
-    double a = 0, b = 0;
+    const double a = cos_sum[m], b = sin_sum[m];
     const double* cs = &mode_cos_[m * nr];
     const double* sn = &mode_sin_[m * nr];
-    for (std::size_t k = 0; k < nr; ++k) {
-      a += rim_weight_[k] * ur[k] * cs[k];
-      b += rim_weight_[k] * ur[k] * sn[k];
-    }
     const double norm = m == 0 ? 1.0 / kTwoPi : 1.0 / std::numbers::pi;
     amplitude[m] = norm * std::hypot(a, b) / reference_radius_;
     if (m <= kFilteredAbarModes)
@@ -326,10 +349,10 @@ void Diagnostics::sample(const NodalView& nodes, const ElementState& s, const Ke
 }
 
 FieldFrame Diagnostics::frame(const NodalView& nodes, const ElementState& s,
-                              const KernelView& kernel, double t) const {
+                              const KernelView& kernel, double t, FieldFrame reuse) const {
   const Mesh& mesh = problem_.mesh;
   const std::size_t nn = mesh.node_count(), ne = geometry_.size();
-  FieldFrame fr;
+  FieldFrame fr = std::move(reuse);  // every value below is written
   fr.time_s = t;
   fr.displacement.resize(2 * nn);
   fr.velocity.resize(2 * nn);

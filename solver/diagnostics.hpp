@@ -54,8 +54,10 @@ class Diagnostics {
               const KernelTotals& totals, double t, double dt, double dissipated,
               double external_work, History& history) const;
 
+  // The fields at time t, written into `reuse` (any earlier content is overwritten; its buffers
+  // are kept where they have the size).
   FieldFrame frame(const NodalView& nodes, const ElementState& elements, const KernelView& kernel,
-                   double t) const;
+                   double t, FieldFrame reuse = {}) const;
 
   // Whether the elements' volumetric stress comes from the kernel's nodal state (average nodal
   // pressure, with the kernel's arrays at hand) rather than from each element's own J.
@@ -82,6 +84,9 @@ class Diagnostics {
   std::vector<double> rim_weight_;           // trapezoidal d(theta) weights, sum 2 pi
   std::vector<double> rim_ref_radius_;       // reference distance from the origin
   std::vector<double> mode_cos_, mode_sin_;  // (M+1) x rim, row-major by mode
+  // The same tables rim x (M+1), row-major by rim node: the amplitude sums run over the modes
+  // in the inner loop (vectorised) and keep each mode's sum in rim-node order.
+  std::vector<double> node_cos_, node_sin_;
   std::vector<int32_t> center_elements_;
   std::vector<int32_t> rim_elements_;  // elements with an edge on the outer boundary
   std::vector<uint8_t> on_rim_node_;   // 1 for nodes of the outer boundary loop

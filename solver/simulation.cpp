@@ -530,7 +530,8 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
   };
   auto write_frame = [&] {
     const auto start = std::chrono::steady_clock::now();
-    FieldFrame frame = diagnostics.frame(view, elements, kernel_view, t);
+    FieldFrame frame = diagnostics.frame(
+        view, elements, kernel_view, t, control.spare_frame ? control.spare_frame() : FieldFrame{});
     const auto handed = std::chrono::steady_clock::now();
     result.diagnostics_time_s += std::chrono::duration<double>(handed - start).count();
     control.on_frame(std::move(frame));

@@ -503,6 +503,7 @@ void JobRunner::run_job(const std::string& id, CancelToken& cancel) {
       cancel.request(StopReason::kInternal);
     }
   };
+  control.spare_frame = [&] { return writer->spare_frame(); };
 
   RunResult result;
   try {

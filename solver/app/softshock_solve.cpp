@@ -186,6 +186,7 @@ int main(int argc, char** argv) {
     control.cancel = &g_cancel;
     control.on_progress = [&](const softshock::Progress& p) { reporter(p); };
     control.on_frame = [&](softshock::FieldFrame f) { writer.write_frame(std::move(f)); };
+    control.spare_frame = [&] { return writer.spare_frame(); };
     const auto result = softshock::run_simulation(problem, softshock::make_options(spec), control);
     reporter.done();
     auto summary = softshock::summarize(problem, result);

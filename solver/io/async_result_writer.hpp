@@ -20,6 +20,7 @@
 #include <mutex>
 #include <string>
 #include <thread>
+#include <vector>
 
 #include "solver/io/result_file.hpp"
 
@@ -56,8 +57,10 @@ class OrderedWorker {
 
 class AsyncResultWriter {
  public:
-  // Creates the ResultWriter (temporary file, mesh) on the calling thread, so set-up errors
-  // surface at once, exactly as ResultWriter's constructor throws them.
+  // Creates the ResultWriter (directory, temporary file, attributes) on the calling thread, so
+  // set-up errors surface at once, exactly as ResultWriter's constructor throws them; the mesh
+  // datasets are the writer thread's first task (an error there reaches the next write_frame()
+  // or finish(), as a frame's would).
   AsyncResultWriter(const std::string& out_dir, const Mesh& mesh, const std::string& spec_json,
                     const std::string& solver_version, std::size_t max_queued_frames = 4);
   ~AsyncResultWriter();
@@ -71,12 +74,19 @@ class AsyncResultWriter {
   // durable (ResultWriter::finish) and returns. Throws any write error.
   void finish(History history, RunSummary summary, bool complete, std::string error);
 
+  // A frame already written, for the solver to fill again in place (RunControl::spare_frame),
+  // or an empty frame when none is free. At most kSpareFrames are kept.
+  FieldFrame spare_frame();
+
   std::string h5_path() const { return h5_path_; }
 
  private:
+  static constexpr std::size_t kSpareFrames = 2;
   std::unique_ptr<ResultWriter> writer_;
   std::string h5_path_;
-  OrderedWorker worker_;  // after writer_: destroyed (joined) first
+  std::mutex spare_mutex_;
+  std::vector<FieldFrame> spares_;
+  OrderedWorker worker_;  // last: destroyed (joined) first, while what its tasks use exists
 };
 
 }  // namespace softshock

@@ -21,6 +21,13 @@ namespace {
 
 }  // namespace
 
+void write_back(const fs::path& p) noexcept {
+  const int fd = ::open(p.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0) return;
+  ::fdatasync(fd);
+  ::close(fd);
+}
+
 void fsync_path(const fs::path& p, bool directory) {
   const int fd = ::open(p.c_str(), O_RDONLY | O_CLOEXEC | (directory ? O_DIRECTORY : 0));
   if (fd < 0) fail_errno("cannot open for fsync", p);

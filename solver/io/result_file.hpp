@@ -17,12 +17,17 @@ namespace softshock {
 // fsyncs and renames, so a reader never sees a half-written result.h5.
 class ResultWriter {
  public:
+  // kLater: the constructor creates the file and its attributes only, and write_mesh() adds
+  // /mesh (before finish(), which refuses a file without it) -- so that a writer thread can
+  // take that work off the thread that creates the writer.
+  enum class MeshWrite { kNow, kLater };
   ResultWriter(const std::string& out_dir, const Mesh& mesh, const std::string& spec_json,
-               const std::string& solver_version);
+               const std::string& solver_version, MeshWrite when = MeshWrite::kNow);
   ~ResultWriter();  // without finish(): closes and removes the temporary file
   ResultWriter(const ResultWriter&) = delete;
   ResultWriter& operator=(const ResultWriter&) = delete;
 
+  void write_mesh(const Mesh& mesh);          // MeshWrite::kLater: /mesh, once
   void write_frame(const FieldFrame& frame);  // /fields/frame_00000, _00001, ...
   // Writes /timeseries, /modes, root attributes (run statistics, summary JSON, `complete`,
   // `error`), then makes the files durable under their final names.
@@ -33,6 +38,7 @@ class ResultWriter {
   std::string xdmf_path() const;  // DIR/result.xdmf
 
  private:
+  static void check_mesh(const Mesh& mesh);
   struct Impl;
   std::unique_ptr<Impl> impl_;
 };

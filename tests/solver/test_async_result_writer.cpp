@@ -170,6 +170,12 @@ TEST(AsyncResultWriter, WritesFramesInOrderAndCompletesOnlyOnFinish) {
   }
   ResultReader reader(dir.str("out/result.h5"));
   EXPECT_TRUE(reader.info().complete);
+  // The mesh, written by the writer thread from its own copy.
+  const Mesh back = reader.mesh();
+  EXPECT_EQ(back.x, mesh.x);
+  EXPECT_EQ(back.y, mesh.y);
+  EXPECT_EQ(back.triangles, mesh.triangles);
+  EXPECT_EQ(back.boundary_nodes, mesh.boundary_nodes);
   ASSERT_EQ(reader.info().frame_times.size(), 12u);
   for (std::size_t k = 0; k < 12; ++k) {
     EXPECT_EQ(reader.info().frame_times[k], 1e-9 * static_cast<double>(k));
@@ -178,6 +184,41 @@ TEST(AsyncResultWriter, WritesFramesInOrderAndCompletesOnlyOnFinish) {
   }
   EXPECT_EQ(reader.series("time").size(), 5u);
   EXPECT_FALSE(fs::exists(dir.str("out/result.h5.tmp")));
+}
+
+// Spares (RunControl::spare_frame): only frames already written come back, at most two, and
+// frames filled into them are written as they were handed over.
+TEST(AsyncResultWriter, SpareFramesAreWrittenFramesAndFillCorrectly) {
+  ScratchDir dir;
+  const Mesh mesh = small_mesh();
+  AsyncResultWriter writer(dir.str("out"), mesh, "{}", "test", 2);
+  EXPECT_TRUE(writer.spare_frame().J.empty());  // nothing written yet
+  std::size_t reused = 0;
+  for (int k = 0; k < 12; ++k) {
+    FieldFrame f = writer.spare_frame();
+    reused += f.J.empty() ? 0 : 1;
+    const FieldFrame want = make_frame(mesh, 1e-9 * k);
+    f.time_s = want.time_s;
+    f.displacement = want.displacement, f.velocity = want.velocity, f.J = want.J;
+    f.mean_stress = want.mean_stress, f.radial_stress = want.radial_stress;
+    f.hoop_stress = want.hoop_stress, f.von_mises = want.von_mises;
+    f.aspect_ratio = want.aspect_ratio;
+    writer.write_frame(std::move(f));
+    std::this_thread::sleep_for(2ms);  // the writer catches up: its frames become spares
+  }
+  EXPECT_GT(reused, 0u);
+  writer.finish(make_history(2), make_summary(mesh), true, "");
+  int spares = 0;
+  while (!writer.spare_frame().J.empty()) ++spares;
+  EXPECT_LE(spares, 2);
+  ResultReader reader(dir.str("out/result.h5"));
+  ASSERT_EQ(reader.info().frame_times.size(), 12u);
+  for (std::size_t k = 0; k < 12; ++k) {
+    const FieldFrame want = make_frame(mesh, 1e-9 * static_cast<double>(k));
+    EXPECT_EQ(reader.info().frame_times[k], want.time_s);
+    EXPECT_EQ(reader.field(k, "displacement"), want.displacement);
+    EXPECT_EQ(reader.field(k, "J"), want.J);
+  }
 }
 
 TEST(AsyncResultWriter, WithoutFinishNothingStaysBehind) {

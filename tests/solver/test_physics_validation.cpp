@@ -578,6 +578,42 @@ TEST(PhysicsValidation, TheRunAccountsForItsDiagnosticsAndOutputTime) {
   EXPECT_GT(quiet.diagnostics_time_s, 0.0);
 }
 
+// A frame filled into a recycled one (RunControl::spare_frame) is the fresh frame to the bit:
+// every value of the spare -- here poisoned with NaN -- is overwritten.
+TEST(PhysicsValidation, AFrameFilledInASpareIsTheFreshFrame) {
+  const v1::RunSpec spec = spec_from(
+      R"({"geometry":{"target_elements":1000},"run":{"end_time":2e-8,"output_interval":5e-9}})");
+  std::vector<FieldFrame> fresh, recycled;
+  RunControl plain;
+  plain.on_frame = [&](FieldFrame f) { fresh.push_back(std::move(f)); };
+  run_spec(spec, nullptr, plain);
+  RunControl reusing;
+  reusing.on_frame = [&](FieldFrame f) { recycled.push_back(std::move(f)); };
+  reusing.spare_frame = [&] {
+    if (recycled.empty()) return FieldFrame{};
+    FieldFrame spare = recycled.back();  // the buffers of a frame of this size, poisoned
+    for (auto* v :
+         {&spare.displacement, &spare.velocity, &spare.J, &spare.mean_stress, &spare.radial_stress,
+          &spare.hoop_stress, &spare.von_mises, &spare.aspect_ratio})
+      std::fill(v->begin(), v->end(), std::nan(""));
+    return spare;
+  };
+  run_spec(spec, nullptr, reusing);
+  ASSERT_EQ(recycled.size(), fresh.size());
+  for (std::size_t k = 0; k < fresh.size(); ++k) {
+    SCOPED_TRACE(k);
+    EXPECT_EQ(recycled[k].time_s, fresh[k].time_s);
+    EXPECT_EQ(recycled[k].displacement, fresh[k].displacement);
+    EXPECT_EQ(recycled[k].velocity, fresh[k].velocity);
+    EXPECT_EQ(recycled[k].J, fresh[k].J);
+    EXPECT_EQ(recycled[k].mean_stress, fresh[k].mean_stress);
+    EXPECT_EQ(recycled[k].radial_stress, fresh[k].radial_stress);
+    EXPECT_EQ(recycled[k].hoop_stress, fresh[k].hoop_stress);
+    EXPECT_EQ(recycled[k].von_mises, fresh[k].von_mises);
+    EXPECT_EQ(recycled[k].aspect_ratio, fresh[k].aspect_ratio);
+  }
+}
+
 TEST(PhysicsValidation, CancellationStopsTheRun) {
   std::atomic<bool> cancel{false};
   RunControl control;

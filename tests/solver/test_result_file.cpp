@@ -280,6 +280,29 @@ TEST(ResultFile, WriterDestroyedWithoutFinishLeavesNothing) {
   EXPECT_TRUE(fs::is_empty(dir.path()));
 }
 
+// MeshWrite::kLater (the writer thread's way): /mesh comes from write_mesh(), once, with the mesh
+// the writer was made for, before finish() -- a file without its mesh is never named complete.
+TEST(ResultFile, ALaterMeshIsWrittenOnceAndFinishWaitsForIt) {
+  ScratchDir dir;
+  const Mesh mesh = two_triangles();
+  {
+    ResultWriter writer(dir.str("a"), mesh, kSpec, "v", ResultWriter::MeshWrite::kLater);
+    writer.write_frame(make_frame(mesh, 0.0, 0));
+    EXPECT_THROW(writer.finish(make_history(1, 0), make_summary(mesh), true, ""), std::logic_error);
+    EXPECT_THROW(writer.write_mesh(make_rectangle_mesh(1.0, 1.0, 2, 2)), std::invalid_argument);
+    writer.write_mesh(mesh);
+    EXPECT_THROW(writer.write_mesh(mesh), std::logic_error);
+    writer.finish(make_history(1, 0), make_summary(mesh), true, "");
+  }
+  const Mesh back = ResultReader(dir.str("a/result.h5")).mesh();
+  EXPECT_EQ(back.x, mesh.x);
+  EXPECT_EQ(back.y, mesh.y);
+  EXPECT_EQ(back.triangles, mesh.triangles);
+  EXPECT_EQ(back.boundary_nodes, mesh.boundary_nodes);
+  { ResultWriter unfinished(dir.str("b"), mesh, kSpec, "v", ResultWriter::MeshWrite::kLater); }
+  EXPECT_TRUE(fs::is_empty(dir.path() / "b"));
+}
+
 TEST(ResultFile, RewriteReplacesEarlierResult) {
   // A requeued job writes into the folder of its interrupted attempt.
   ScratchDir dir;
