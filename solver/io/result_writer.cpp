@@ -345,28 +345,30 @@ void ResultWriter::write_frame(const FieldFrame& frame) {
   }
   const std::string name = frame_group_name(m.frame_groups.size());
   const std::string& path = m.tmp_name;
-  auto lock = lock_hdf5();
-  try {
-    Hid g = create_group(m.fields.get(), name.c_str(), path, false);
-    write_double_attr(g.get(), "time", frame.time_s, path);
-    for (const FieldSpec& f : kFields) {
-      const std::vector<double>& v = frame.*f.member;
-      if (!f.nodal) {
-        write_doubles(g.get(), f.name, v.data(), vector_shape(m.elements), f.units, path);
-        continue;
+  {
+    auto lock = lock_hdf5();
+    try {
+      Hid g = create_group(m.fields.get(), name.c_str(), path, false);
+      write_double_attr(g.get(), "time", frame.time_s, path);
+      for (const FieldSpec& f : kFields) {
+        const std::vector<double>& v = frame.*f.member;
+        if (!f.nodal) {
+          write_doubles(g.get(), f.name, v.data(), vector_shape(m.elements), f.units, path);
+          continue;
+        }
+        m.xyz.assign(kVectorColumns * m.nodes, 0.0);
+        for (std::size_t i = 0; i < m.nodes; ++i) {
+          m.xyz[kVectorColumns * i] = v[2 * i];
+          m.xyz[kVectorColumns * i + 1] = v[2 * i + 1];
+        }
+        write_doubles(g.get(), f.name, m.xyz.data(), matrix_shape(m.nodes, kVectorColumns), f.units,
+                      path);
       }
-      m.xyz.assign(kVectorColumns * m.nodes, 0.0);
-      for (std::size_t i = 0; i < m.nodes; ++i) {
-        m.xyz[kVectorColumns * i] = v[2 * i];
-        m.xyz[kVectorColumns * i + 1] = v[2 * i + 1];
-      }
-      write_doubles(g.get(), f.name, m.xyz.data(), matrix_shape(m.nodes, kVectorColumns), f.units,
-                    path);
+    } catch (const std::exception& e) {
+      m.broken = e.what();
+      throw;
     }
-  } catch (const std::exception& e) {
-    m.broken = e.what();
-    throw;
-  }
+  }  // the HDF5 lock: other runs' files need it, the sync below does not
   m.frame_groups.push_back("/fields/" + name);
   m.frame_times.push_back(frame.time_s);
   // The frame's data is with the OS: written to the disk here, on the writer thread beside the
