@@ -123,15 +123,14 @@ RunSummary parse_summary_json(const std::string& json) {
   r.min_dt_s = json_number(s, "min_dt_s");
   r.max_dt_s = json_number(s, "max_dt_s");
   // Absent in results written before they were added: 0, not NaN.
-  if (f.find("kernel_time_s") != f.end()) r.kernel_time_s = json_number(s, "kernel_time_s");
-  if (f.find("diagnostics_time_s") != f.end())
-    r.diagnostics_time_s = json_number(s, "diagnostics_time_s");
-  if (f.find("output_time_s") != f.end()) r.output_time_s = json_number(s, "output_time_s");
-  if (f.find("meshing_time_s") != f.end()) r.meshing_time_s = json_number(s, "meshing_time_s");
-  if (f.find("mesh_cache") != f.end()) r.mesh_cache = text("mesh_cache");
   auto optional = [&](const char* key, double& out) {
     if (f.find(key) != f.end()) out = json_number(s, key);
   };
+  optional("kernel_time_s", r.kernel_time_s);
+  optional("diagnostics_time_s", r.diagnostics_time_s);
+  optional("output_time_s", r.output_time_s);
+  optional("meshing_time_s", r.meshing_time_s);
+  if (f.find("mesh_cache") != f.end()) r.mesh_cache = text("mesh_cache");
   optional("max_abar_filtered_first_cycle", r.max_abar_filtered_first_cycle);
   optional("max_abar_filtered", r.max_abar_filtered);
   optional("abar_end", r.abar_end);

@@ -38,7 +38,6 @@ class ResultWriter {
   std::string xdmf_path() const;  // DIR/result.xdmf
 
  private:
-  static void check_mesh(const Mesh& mesh);
   struct Impl;
   std::unique_ptr<Impl> impl_;
 };

@@ -230,6 +230,15 @@ struct ResultWriter::Impl {
   }
 };
 
+namespace {
+void check_mesh(const Mesh& mesh) {
+  if (mesh.x.size() != mesh.y.size()) {
+    throw std::invalid_argument("ResultWriter: mesh has " + std::to_string(mesh.x.size()) +
+                                " x but " + std::to_string(mesh.y.size()) + " y coordinates");
+  }
+}
+}  // namespace
+
 ResultWriter::ResultWriter(const std::string& out_dir, const Mesh& mesh,
                            const std::string& spec_json, const std::string& solver_version,
                            MeshWrite when)
@@ -277,13 +286,6 @@ ResultWriter::ResultWriter(const std::string& out_dir, const Mesh& mesh,
       m.discard_file();
       throw;
     }
-  }
-}
-
-void ResultWriter::check_mesh(const Mesh& mesh) {
-  if (mesh.x.size() != mesh.y.size()) {
-    throw std::invalid_argument("ResultWriter: mesh has " + std::to_string(mesh.x.size()) +
-                                " x but " + std::to_string(mesh.y.size()) + " y coordinates");
   }
 }
 
