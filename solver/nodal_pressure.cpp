@@ -150,9 +150,14 @@ __attribute__((target_clones("avx512f", "avx2", "default"))) void accumulate_sta
                                 energy);
 }
 
-void subtract_stabilization(const double* reference_area, const double* q_sum, std::size_t begin,
-                            std::size_t end, double* mean_stress) {
-  for (std::size_t i = begin; i < end; ++i) mean_stress[i] -= q_sum[i] / reference_area[i];
+__attribute__((target_clones("avx512f", "avx2", "default"))) void subtract_stabilization(
+    const double* __restrict reference_area, const double* __restrict q_sum,
+    const double* __restrict bulk_modulus, std::size_t begin, std::size_t end,
+    double* __restrict mean_stress, PackedNode* __restrict nodes) {
+  for (std::size_t i = begin; i < end; ++i) {
+    mean_stress[i] -= q_sum[i] / reference_area[i];
+    nodes[i].lanes[2] = mean_stress[i], nodes[i].lanes[3] = bulk_modulus[i];
+  }
 }
 
 NodalPressureState nodal_pressure_state(const ElementGeometry& g,
@@ -172,7 +177,7 @@ NodalPressureState nodal_pressure_state(const ElementGeometry& g,
                    k.data(), energy);
   accumulate_stabilization(g, beta * kappa, nodal_j.data(), j_element.data(), 0, ne, s.data(),
                            q.data(), beta > 0 ? energy : StoredEnergySum{});
-  subtract_stabilization(reference_area.data(), q.data(), 0, nn, sm.data());
+  subtract_stabilization(reference_area.data(), q.data(), k.data(), 0, nn, sm.data(), nodes.data());
   out.element_mean_stress.resize(ne);
   for (std::size_t e = 0; e < ne; ++e) {
     const double je = j_element[e];

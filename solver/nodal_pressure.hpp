@@ -56,9 +56,12 @@ void accumulate_stabilization(const ElementGeometry& geometry, double beta_kappa
                               StoredEnergySum energy = {});
 
 // Pass 4 (nodes [begin, end)): mean_stress -= q_sum / reference_area, the nodal stress the
-// element kernel averages.
-void subtract_stabilization(const double* reference_area, const double* q_sum, std::size_t begin,
-                            std::size_t end, double* mean_stress);
+// element kernel averages, written with bulk_modulus into the nodes' rows (as pack_nodal_state
+// does; one pass over the nodes, not two).
+void subtract_stabilization(const double* __restrict reference_area, const double* __restrict q_sum,
+                            const double* __restrict bulk_modulus, std::size_t begin,
+                            std::size_t end, double* __restrict mean_stress,
+                            PackedNode* __restrict nodes);
 
 // All four passes at once, for diagnostics (not the hot path): per element, the volumetric mean
 // stress the kernel applies (nodal mean + stabilisation; element_weight blends in the element's

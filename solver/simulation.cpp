@@ -338,8 +338,8 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
     auto stabilized_state = [&](int tid) {  // pass 4: nodal stress less the patch mean of s
       const auto [n0, n1] = node_range(tid);
       if (threads > 1) sum_threads(thread_q, n0, n1, nodal_q.data());
-      subtract_stabilization(nodal_area0.data(), nodal_q.data(), n0, n1, nodal_sm.data());
-      pack_nodal_state(nodal_sm.data(), nodal_k.data(), n0, n1, nodes.data());
+      subtract_stabilization(nodal_area0.data(), nodal_q.data(), nodal_k.data(), n0, n1,
+                             nodal_sm.data(), nodes.data());
     };
     auto work = [&](int tid) {
       const auto [e0, e1] = element_range(tid);

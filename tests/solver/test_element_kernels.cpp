@@ -327,8 +327,7 @@ NodalRun nodal_forces(KernelFixture& fx, const std::vector<double>& x, const std
                    k.data());
   accumulate_stabilization(fx.g, beta * fx.p.kappa, nj.data(), je.data(), 0, ne, se.data(),
                            q.data());
-  subtract_stabilization(v0.data(), q.data(), 0, nn, sm.data());
-  pack_nodal_state(sm.data(), k.data(), 0, nn, nodes.data());
+  subtract_stabilization(v0.data(), q.data(), k.data(), 0, nn, sm.data(), nodes.data());
   KernelParams p = fx.p;
   p.nodal_pressure = true;
   p.element_stress_shift = se.data(), p.stabilization_beta_kappa = beta * fx.p.kappa;
