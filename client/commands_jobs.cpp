@@ -320,7 +320,7 @@ int cmd_summary(const GlobalOptions& g, const ParsedArgs& a) {
     if (s.kernel_time() > 0) {
       kv.add("kernel grind time",
              fmt_num(s.kernel_time() / (double(s.steps()) * double(s.elements())) * 1e9, 4) +
-                 " ns per element-step (element loop alone, CPU time)");
+                 " ns per element-step (element passes alone)");
     }
   }
   if (s.wall_time() > 0 && (s.diagnostics_time() > 0 || s.output_time() > 0)) {

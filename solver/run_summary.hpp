@@ -56,10 +56,10 @@ struct RunSummary {
   std::string status;  // "completed", "cancelled", "failed"
   std::string error;
   std::string failure;  // "failed": its cause (failure_name, e.g. "MESH_DISTORTION"); else empty
-  // Where the time went (docs/performance.md). kernel_time_s: the element loop and the nodal
-  // passes before it (on the evaluations a history sample follows, the loop also sums the
-  // elements' stored energy and largest aspect ratio), CPU time measured in the run (robust to
-  // other processes on the cores; wall_time_s is not).
+  // Where the time went (docs/performance.md). kernel_time_s: the element loop, the nodal
+  // passes before it and the mass blend's element pass (on the evaluations a history sample
+  // follows, the loop also sums the elements' stored energy and largest aspect ratio), their
+  // wall time on the solver thread measured in the run (a CPU clock is a system call a read).
   // meshing_time_s and mesh_cache ("hit", "miss", "replaced", "not-used") describe the mesh before
   // the run; summarize() cannot know them, the caller sets them.
   // diagnostics_time_s and output_time_s: the solver thread's wall time in history samples and

@@ -97,8 +97,9 @@ struct RunResult {
   History history;
   int64_t steps = 0;
   double wall_time_s = 0;
-  // The kernel: CPU time in the nodal passes and compute_element_forces over the steps (the
-  // busiest thread's), for the summary's kernel grind time beside the whole run's wall time.
+  // The kernel: wall time in the nodal passes, compute_element_forces and the mass blend's
+  // element pass over the steps (the busiest thread's, barrier waits excluded), for the
+  // summary's kernel grind time beside the whole run's wall time.
   double kernel_time_s = 0;
   // Wall time of the solver's thread in diagnostics (history samples and the fields of frames;
   // the sample sums the element loop adds are the kernel's) and in output (handing frames to
