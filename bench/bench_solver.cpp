@@ -1,6 +1,7 @@
 // Solver grind time: nanoseconds per element per step (LS-DYNA's "time per zone cycle"), on the
 // default disk (concentric rings, the default element, mass blend and viscosities) of ~16.5k, ~66k
-// and ~264k elements, with 1 and 2 element-loop threads; and 16.5k lumped, one thread.
+// and ~264k elements, with 1 and 2 element-loop threads; 16.5k lumped, one thread; and 16.5k with
+// the DOLFINx peer's physics (plain P1, lumped mass, the thesis's viscosity), one thread.
 // Each iteration runs the baseline problem for `kSteps` steps and subtracts a run of
 // `kWarm` steps, so meshing and set-up are excluded; diagnostics are off (history every 1 s).
 //   build/bench/bench_solver --benchmark_repetitions=5 --benchmark_report_aggregates_only=true
@@ -89,6 +90,35 @@ void BM_GrindTimeLumped(benchmark::State& state) {
   grind_time(state, disk(static_cast<int>(state.range(0)), 0.0), 1);
 }
 BENCHMARK(BM_GrindTimeLumped)
+    ->Arg(16500)
+    ->ArgName("target_elements")
+    ->UseManualTime()
+    ->Unit(benchmark::kMillisecond)
+    ->Iterations(3);
+
+// The physics of the DOLFINx peer's "full" step (../shared/peer_dolfinx/README.md) as near as the
+// spec's options come: plain P1 (one J per triangle), the lumped mass, the thesis's artificial
+// viscosity (on while compressing, smallest-altitude length) and no Kelvin-Voigt viscosity. What
+// our kernel costs on the peer's own work, beside the default element's (BM_GrindTime).
+const softshock::Problem& peer_physics_disk(int elements) {
+  static std::map<int, softshock::Problem> cache;
+  auto it = cache.find(elements);
+  if (it == cache.end()) {
+    auto spec = softshock::v1::RunSpec();
+    spec.mutable_geometry()->set_target_elements(elements);
+    spec.mutable_element()->set_formulation(softshock::v1::P1);
+    spec.mutable_element()->set_mass_blend(0.0);
+    spec.mutable_viscosity()->set_activation(softshock::v1::COMPRESSION_ONLY);
+    spec.mutable_material()->set_shear_viscosity(0.0);
+    spec = softshock::normalize_spec(spec);
+    it = cache.emplace(elements, softshock::make_problem(spec)).first;
+  }
+  return it->second;
+}
+void BM_GrindTimePeerPhysics(benchmark::State& state) {
+  grind_time(state, peer_physics_disk(static_cast<int>(state.range(0))), 1);
+}
+BENCHMARK(BM_GrindTimePeerPhysics)
     ->Arg(16500)
     ->ArgName("target_elements")
     ->UseManualTime()
