@@ -76,11 +76,15 @@ def main():
             series["dolfinx"].append(dolfinx(args.peer, work, r))
             print(f"round {r}: " + ", ".join(f"{k} {v[-1]:.1f}" for k, v in series.items()),
                   flush=True)
+    # Each round's own ratio as well: the machine's phase moves both sides of one round alike,
+    # while the medians of the two series may come from different phases.
     d = statistics.median(series["dolfinx"])
     print(f"median ns/element-step: dolfinx {d:.1f}")
     for name in CASES:
         s = statistics.median(series[name])
-        print(f"  softshock, {name}: {s:.1f}; ratio dolfinx/softshock {d / s:.1f}x")
+        per_round = [x / y for x, y in zip(series["dolfinx"], series[name])]
+        print(f"  softshock, {name}: {s:.1f}; ratio of the medians {d / s:.1f}x; per round "
+              f"{', '.join(f'{r:.1f}' for r in per_round)}x, median {statistics.median(per_round):.1f}x")
     print(f"load average after: {os.getloadavg()[0]:.2f}")
 
 
