@@ -186,6 +186,26 @@ class SoftshockSolve(unittest.TestCase):
         r = subprocess.run([SOLVE, "--bogus"], capture_output=True, text=True)
         self.assertEqual(r.returncode, 2)
 
+    def test_executables_do_not_load_libraries_from_the_working_directory(self):
+        # A RUNPATH with an empty entry (CMake pads the build tree's with one) makes the loader
+        # search the current directory: a file there named like a linked library is loaded.
+        # Plant a bogus copy of every library each executable links, then start it from there.
+        binaries = [SOLVE] + [os.environ[k] for k in ("SOFTSHOCKD", "SOFTSHOCK") if k in os.environ]
+        for binary in binaries:
+            with self.subTest(binary=os.path.basename(binary)):
+                ldd = subprocess.run(["ldd", binary], capture_output=True, text=True, check=True,
+                                     cwd="/")
+                names = [line.split()[0] for line in ldd.stdout.splitlines()
+                         if "=>" in line and "/" in line.split("=>")[1]]
+                self.assertTrue(names, ldd.stdout)
+                for name in names:
+                    with open(os.path.join(self.tmp.name, name), "w") as f:
+                        f.write("not a library\n")
+                r = subprocess.run([binary, "--bogus"], capture_output=True, text=True,
+                                   cwd=self.tmp.name, timeout=60)
+                self.assertNotIn("error while loading shared libraries", r.stderr)
+                self.assertEqual(r.returncode, 2, r.stderr)
+
 
 if __name__ == "__main__":
     unittest.main()
