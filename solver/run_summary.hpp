@@ -69,7 +69,7 @@ struct RunSummary {
   double meshing_time_s = 0;
   std::string mesh_cache = "not-used";
 
-  // Nanoseconds per element-step of the whole run (wall time) and of the element loop alone (CPU);
+  // Nanoseconds per element-step of the whole run and of the kernel's passes alone (wall times);
   // the share of meshing in meshing + run, and of diagnostics and output in the run's wall time.
   // NaN when undefined (no steps; no time).
   double grind_ns() const;

@@ -117,12 +117,16 @@ struct Schedule {
   double next_output_time() const { return output > 0 ? next_output * output : end; }
 };
 
-// The kernel's clock: the steady clock, read in user space (vDSO, ~30 ns here). The calling
-// thread's CPU clock, used until 2026-12-03, is a system call (1.3 us on this VM): its 4 reads a
-// step made the t-bar = 4 run 5 % slower (0.527 -> 0.500 s, docs/performance.md), so the kernel
-// time is now the passes' wall time on their thread -- as the kernel benchmark measures it.
-double kernel_clock_seconds() {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+// The run's one clock, for its wall time and for where that went (kernel, diagnostics, output):
+// the steady clock, read in user space (vDSO, ~30 ns here). The kernel was timed with the
+// thread's CPU clock until 2026-12-03, a system call (1.3 us on this VM) whose 4 reads a step
+// made the t-bar = 4 run 5 % slower (0.527 -> 0.500 s, docs/performance.md).
+using Clock = std::chrono::steady_clock;
+double seconds_between(Clock::time_point start, Clock::time_point end) {
+  return std::chrono::duration<double>(end - start).count();
+}
+double seconds_since(Clock::time_point start) {
+  return seconds_between(start, Clock::now());
 }
 
 }  // namespace
@@ -163,7 +167,7 @@ std::string describe_failure(const KernelTotals& k, double t, int64_t steps) {
 RunResult run_simulation(const Problem& problem, const SolverOptions& options,
                          const RunControl& control) {
   check_problem(problem, options);
-  const auto wall_start = std::chrono::steady_clock::now();
+  const auto wall_start = Clock::now();
   const Mesh& mesh = problem.mesh;
   const std::size_t nn = mesh.node_count();
   const std::size_t ne = mesh.element_count();
@@ -349,9 +353,9 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
     // The kernel's time: the element loop, the nodal-pressure passes before it and the mass
     // blend's element pass after it.
     auto timed = [&](int tid, const auto& pass) {
-      const double start = kernel_clock_seconds();
+      const auto start = Clock::now();
       pass(tid);
-      kernel_seconds[tid] += kernel_clock_seconds() - start;
+      kernel_seconds[tid] += seconds_since(start);
     };
     auto correct = [&](int tid) {  // a+ = M^-1 f; v+ = v* + dt/2 a+
       const auto [n0, n1] = node_range(tid);
@@ -384,13 +388,13 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
       predict(0);
       apply_follower_pressure(t);
       // One timer around all the kernel's passes before the corrector.
-      const double start = kernel_clock_seconds();
+      const auto start = Clock::now();
       if (nodal) {
         nodal_areas(0), nodal_state(0);
         if (beta_kappa > 0) stabilization(0), stabilized_state(0);
       }
       work(0);
-      kernel_seconds[0] += kernel_clock_seconds() - start;
+      kernel_seconds[0] += seconds_since(start);
       correct(0);
       if (mass_blend > 0) timed(0, blend_difference), correct_blend(0);
     } else {
@@ -497,11 +501,8 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
   bool totals_sampled = true;
   // Wall time of the solver's thread in diagnostics (history samples, frames' fields) and in
   // handing frames to the writer (RunResult): where a run's time goes beside the kernel.
-  auto seconds_since = [](std::chrono::steady_clock::time_point start) {
-    return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  };
   auto sample_history = [&] {
-    const auto start = std::chrono::steady_clock::now();
+    const auto start = Clock::now();
     if (!totals_sampled) {
       ElementState scratch = elements;
       KernelParams sums_only = params;
@@ -528,11 +529,11 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
     result.diagnostics_time_s += seconds_since(start);
   };
   auto write_frame = [&] {
-    const auto start = std::chrono::steady_clock::now();
+    const auto start = Clock::now();
     FieldFrame frame = diagnostics.frame(
         view, elements, kernel_view, t, control.spare_frame ? control.spare_frame() : FieldFrame{});
-    const auto handed = std::chrono::steady_clock::now();
-    result.diagnostics_time_s += std::chrono::duration<double>(handed - start).count();
+    const auto handed = Clock::now();
+    result.diagnostics_time_s += seconds_between(start, handed);
     control.on_frame(std::move(frame));
     result.output_time_s += seconds_since(handed);
     ++result.frames_written;
@@ -651,8 +652,7 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
     write_frame();
   result.steps = steps;
   result.kernel_time_s = *std::max_element(kernel_seconds.begin(), kernel_seconds.end());
-  result.wall_time_s =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
+  result.wall_time_s = seconds_since(wall_start);
   return result;
 }
 
