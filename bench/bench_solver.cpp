@@ -4,12 +4,16 @@
 // the DOLFINx peer's physics (plain P1, lumped mass, the thesis's viscosity), one thread.
 // Each iteration runs the baseline problem for `kSteps` steps and subtracts a run of
 // `kWarm` steps, so meshing and set-up are excluded; diagnostics are off (history every 1 s).
+// Beside the grind time, each pass of the step as ns per element-step (pass_*_ns: the passes the
+// element runs, RunResult::pass_time_s), so that a change to one pass shows where it acts.
 //   build/bench/bench_solver --benchmark_repetitions=5 --benchmark_report_aggregates_only=true
 #include <benchmark/benchmark.h>
 #include <time.h>
 
+#include <array>
 #include <chrono>
 #include <map>
+#include <string>
 
 #include "solver/gmsh_mesher.hpp"
 #include "solver/run_spec.hpp"
@@ -35,6 +39,7 @@ const softshock::Problem& disk(int elements, double mass_blend = -1) {
 
 struct Seconds {
   double wall, cpu;  // cpu: all threads of the process (robust to a loaded machine at 1 thread)
+  std::array<double, softshock::kStepPasses> pass;  // RunResult::pass_time_s
 };
 
 double process_cpu_seconds() {
@@ -56,22 +61,30 @@ Seconds seconds_for(const softshock::Problem& p, int steps, int threads) {
   const auto r = softshock::run_simulation(p, o);
   benchmark::DoNotOptimize(r.steps);
   return {std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(),
-          process_cpu_seconds() - c0};
+          process_cpu_seconds() - c0, r.pass_time_s};
 }
 
 void grind_time(benchmark::State& state, const softshock::Problem& p, int threads) {
   const double element_steps = static_cast<double>(p.mesh.element_count()) * (kSteps - kWarm);
   double wall = 0, cpu = 0;
+  std::array<double, softshock::kStepPasses> pass{};
   for (auto _ : state) {
     const Seconds full = seconds_for(p, kSteps, threads), warm = seconds_for(p, kWarm, threads);
     state.SetIterationTime(full.wall - warm.wall);
     wall += full.wall - warm.wall;
     cpu += full.cpu - warm.cpu;
+    for (std::size_t k = 0; k < pass.size(); ++k) pass[k] += full.pass[k] - warm.pass[k];
   }
   const double n = element_steps * static_cast<double>(state.iterations());
   state.counters["elements"] = static_cast<double>(p.mesh.element_count());
   state.counters["wall_ns_per_elem_step"] = wall * 1e9 / n;
   state.counters["cpu_ns_per_elem_step"] = cpu * 1e9 / n;
+  // Where the step's time goes, pass by pass (the passes the element runs).
+  for (std::size_t k = 0; k < pass.size(); ++k)
+    if (pass[k] > 0)
+      state.counters[std::string("pass_") +
+                     softshock::step_pass_name(static_cast<softshock::StepPass>(k)) + "_ns"] =
+          pass[k] * 1e9 / n;
 }
 
 void BM_GrindTime(benchmark::State& state) {

@@ -2,6 +2,7 @@
 // diagnostics sampled at the history interval and field frames at the output interval.
 #pragma once
 
+#include <array>
 #include <atomic>
 #include <cstdint>
 #include <functional>
@@ -90,6 +91,24 @@ enum class FailureKind {
 // on a cluster, read back from its result file, fails with the same reason as a local one.
 const char* failure_name(FailureKind kind);
 
+// A step's passes in the order they run (docs/performance.md, "Pass by pass"). The
+// kernel's: the nodal-pressure passes, the element loop and the mass blend's element pass.
+enum class StepPass {
+  kPredictAndLoad,       // predictor (node pass) and the follower pressure on the boundary
+  kNodalAreas,           // nodal pressure, pass 1 (elements)
+  kNodalState,           // pass 2 (nodes)
+  kStabilization,        // pass 3 (elements)
+  kStabilizedState,      // pass 4 (nodes)
+  kElementForces,        // compute_element_forces (elements)
+  kCorrect,              // corrector (nodes)
+  kMassBlendDifference,  // the mass blend's element pass
+  kMassBlendCorrect,     // its node correction
+};
+inline constexpr std::size_t kStepPasses = 9;
+static_assert(static_cast<std::size_t>(StepPass::kMassBlendCorrect) + 1 == kStepPasses);
+const char* step_pass_name(StepPass pass);  // "predict_and_load", "nodal_areas", ...
+bool is_kernel_pass(StepPass pass);
+
 struct RunResult {
   RunStatus status = RunStatus::kCompleted;
   std::string error;  // for kFailed: time, element and cause
@@ -101,6 +120,10 @@ struct RunResult {
   // element pass over the steps (the busiest thread's, barrier waits excluded), for the
   // summary's kernel grind time beside the whole run's wall time.
   double kernel_time_s = 0;
+  // Each pass's wall time over the steps, indexed by StepPass (0 for a pass the element does not
+  // run); with threads, the busiest thread's per pass. One thread: the kernel passes sum to
+  // kernel_time_s.
+  std::array<double, kStepPasses> pass_time_s{};
   // Wall time of the solver's thread in diagnostics (history samples and the fields of frames;
   // the sample sums the element loop adds are the kernel's) and in output (handing frames to
   // RunControl::on_frame: with a writer thread, the copy and any wait while its queue is full).

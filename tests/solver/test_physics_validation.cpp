@@ -578,6 +578,56 @@ TEST(PhysicsValidation, TheRunAccountsForItsDiagnosticsAndOutputTime) {
   EXPECT_GT(quiet.diagnostics_time_s, 0.0);
 }
 
+// Where the kernel's time goes (RunResult::pass_time_s, bench_solver's pass_*_ns): each pass the
+// element runs is timed, a pass it does not run is 0, and on one thread the kernel's passes are
+// exactly kernel_time_s; with two threads kernel_time_s is the busiest thread's sum, so between
+// the largest kernel pass and the sum of the passes' busiest threads.
+TEST(PhysicsValidation, TheKernelTimeIsTheSumOfItsPasses) {
+  auto kernel_sum = [](const RunResult& r) {
+    double sum = 0;
+    for (std::size_t k = 0; k < kStepPasses; ++k)
+      if (is_kernel_pass(static_cast<StepPass>(k))) sum += r.pass_time_s[k];
+    return sum;
+  };
+  const std::string run = R"("run":{"end_time":1e-8,"output_interval":0)";
+  const RunResult standard =
+      run_spec(spec_from(R"({"geometry":{"target_elements":1000},)" + run + "}}"));
+  ASSERT_EQ(standard.status, RunStatus::kCompleted);
+  double all = 0;
+  for (std::size_t k = 0; k < kStepPasses; ++k) {
+    EXPECT_GT(standard.pass_time_s[k], 0.0) << step_pass_name(static_cast<StepPass>(k));
+    all += standard.pass_time_s[k];
+  }
+  EXPECT_EQ(kernel_sum(standard), standard.kernel_time_s);
+  EXPECT_LT(standard.kernel_time_s, all);
+  EXPECT_LE(all, standard.wall_time_s);
+
+  // Plain P1, lumped: no nodal-pressure passes, no mass blend.
+  const RunResult p1 =
+      run_spec(spec_from(R"({"geometry":{"target_elements":1000},"element":{"formulation":"P1",)"
+                         R"("mass_blend":0},)" +
+                         run + "}}"));
+  ASSERT_EQ(p1.status, RunStatus::kCompleted);
+  for (std::size_t k = 0; k < kStepPasses; ++k) {
+    const auto pass = static_cast<StepPass>(k);
+    const bool runs = pass == StepPass::kPredictAndLoad || pass == StepPass::kElementForces ||
+                      pass == StepPass::kCorrect;
+    EXPECT_EQ(p1.pass_time_s[k] > 0.0, runs) << step_pass_name(pass);
+  }
+  EXPECT_EQ(p1.kernel_time_s, p1.pass_time_s[static_cast<std::size_t>(StepPass::kElementForces)]);
+
+  const RunResult two =
+      run_spec(spec_from(R"({"geometry":{"target_elements":1000},)" + run + R"(,"threads":2}})"));
+  ASSERT_EQ(two.status, RunStatus::kCompleted);
+  for (std::size_t k = 0; k < kStepPasses; ++k) {
+    EXPECT_GT(two.pass_time_s[k], 0.0) << step_pass_name(static_cast<StepPass>(k));
+    if (is_kernel_pass(static_cast<StepPass>(k))) {
+      EXPECT_LE(two.pass_time_s[k], two.kernel_time_s) << step_pass_name(static_cast<StepPass>(k));
+    }
+  }
+  EXPECT_LE(two.kernel_time_s, kernel_sum(two));
+}
+
 // A frame filled into a recycled one (RunControl::spare_frame) is the fresh frame to the bit:
 // every value of the spare -- here poisoned with NaN -- is overwritten.
 TEST(PhysicsValidation, AFrameFilledInASpareIsTheFreshFrame) {
