@@ -10,9 +10,12 @@ Kelvin-Voigt: the physics the DOLFINx step computes, as near as the spec's optio
 ratio on equal work and what the default element's extra passes cost come from one sitting.
 
     apt-get install -y python3-dolfinx python3-gmsh python3-numpy python3-mpi4py openmpi-bin
-    /usr/bin/python3 bench/peer_side_by_side.py build/bench/bench_solver --rounds 3
+    /usr/bin/python3 bench/peer_side_by_side.py build/bench/bench_solver --rounds 3 \
+        [--plot docs/img/pass_split.png]
 
-Figures are recorded in docs/performance.md with the load average.
+--plot draws each case's step pass by pass (bench_solver's pass_*_ns, medians over the rounds)
+against DOLFINx's step and the 12x budget it sets. Figures are recorded in docs/performance.md
+with the load average.
 """
 import argparse
 import json
@@ -30,7 +33,7 @@ CASES = {"default element": "BM_GrindTime/target_elements:16500/threads:1",
 
 
 def ours(bench):
-    """Median wall ns per element-step of 3 repetitions, per case."""
+    """Per case: the median wall ns per element-step of 3 repetitions, and its passes' (name: ns)."""
     pattern = "^(" + "|".join(re.escape(c) + "/" for c in CASES.values()) + ")"
     out = subprocess.run([bench, f"--benchmark_filter={pattern}", "--benchmark_repetitions=3",
                           "--benchmark_report_aggregates_only=true"],
@@ -39,7 +42,10 @@ def ours(bench):
     for name, case in CASES.items():
         for line in out.splitlines():
             if line.startswith(case + "/") and "_median" in line:
-                figures[name] = float(line.split("wall_ns_per_elem_step=")[1].split()[0])
+                wall = float(line.split("wall_ns_per_elem_step=")[1].split()[0])
+                passes = {m[1]: float(m[2])
+                          for m in re.finditer(r"pass_(\w+?)_ns=([0-9.eE+-]+)", line)}
+                figures[name] = (wall, passes)
     if len(figures) != len(CASES):
         sys.exit(f"{bench}: missing cases in its output:\n{out}")
     return figures
@@ -61,6 +67,7 @@ def main():
     ap.add_argument("bench", help="bench_solver executable")
     ap.add_argument("--rounds", type=int, default=3)
     ap.add_argument("--peer", default=PEER, help="the peer_dolfinx folder")
+    ap.add_argument("--plot", help="PNG of the passes against DOLFINx's step (needs matplotlib)")
     args = ap.parse_args()
     bench = os.path.abspath(args.bench)
     os.environ.setdefault("PEER_OUT", "/tmp/peer_dolfinx")  # the peer's meshes/ (read-only folder)
@@ -69,10 +76,13 @@ def main():
                        capture_output=True)
     print(f"load average before: {os.getloadavg()[0]:.2f}")
     series = {name: [] for name in [*CASES, "dolfinx"]}
+    passes = {name: {} for name in CASES}  # case -> pass -> one figure a round
     with tempfile.TemporaryDirectory() as work:
         for r in range(args.rounds):
-            for name, value in ours(bench).items():
-                series[name].append(value)
+            for name, (wall, split) in ours(bench).items():
+                series[name].append(wall)
+                for p, ns in split.items():
+                    passes[name].setdefault(p, []).append(ns)
             series["dolfinx"].append(dolfinx(args.peer, work, r))
             print(f"round {r}: " + ", ".join(f"{k} {v[-1]:.1f}" for k, v in series.items()),
                   flush=True)
@@ -85,7 +95,56 @@ def main():
         per_round = [x / y for x, y in zip(series["dolfinx"], series[name])]
         print(f"  softshock, {name}: {s:.1f}; ratio of the medians {d / s:.1f}x; per round "
               f"{', '.join(f'{r:.1f}' for r in per_round)}x, median {statistics.median(per_round):.1f}x")
+    for name in CASES:
+        print(f"  {name}, passes (median ns/element-step): " +
+              ", ".join(f"{p} {statistics.median(v):.2f}" for p, v in passes[name].items()))
     print(f"load average after: {os.getloadavg()[0]:.2f}")
+    if args.plot:
+        plot(args.plot, {n: {p: statistics.median(v) for p, v in ps.items()}
+                         for n, ps in passes.items()},
+             {n: statistics.median(series[n]) for n in CASES}, d)
+        print(f"wrote {args.plot}")
+
+
+# The passes in step order, with the names docs/performance.md uses.
+PASSES = [("predict_and_load", "predictor + load"), ("nodal_areas", "nodal areas"),
+          ("nodal_state", "nodal Tait state"), ("stabilization", "stabilisation"),
+          ("stabilized_state", "stabilised state"), ("element_forces", "element forces"),
+          ("correct", "corrector"), ("mass_blend_difference", "mass blend, element pass"),
+          ("mass_blend_correct", "mass blend, corrector")]
+
+
+def plot(path, split, wall, dolfinx_ns):
+    """Stacked bars of each case's passes (ns/element-step), DOLFINx's step/12 as the budget; the
+    element loop last, so that the bar shows what the other passes alone leave of the budget."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig, ax = plt.subplots(figsize=(9, 3.6))
+    colours = plt.get_cmap("tab10")
+    names = list(split)
+    order = [p for p in PASSES if p[0] != "element_forces"] + [("element_forces", "element forces")]
+    for row, name in enumerate(names):
+        left = 0.0
+        for k, (key, label) in enumerate(order):
+            ns = split[name].get(key, 0.0)
+            if ns > 0:
+                ax.barh(row, ns, left=left, color=colours(k), edgecolor="white",
+                        label=label if row == 0 or key not in split[names[0]] else None)
+                left += ns
+        ax.text(wall[name] + 0.3, row, f"{wall[name]:.1f} ns step ({dolfinx_ns / wall[name]:.1f}x)",
+                va="center", fontsize=9)
+    budget = dolfinx_ns / 12
+    ax.axvline(budget, color="black", linestyle="--", linewidth=1)
+    ax.text(budget, -0.5, f" 12x DOLFINx's step: {budget:.1f} ns", fontsize=9, va="bottom")
+    ax.set_yticks(range(len(names)), [f"{n} (16.5k)" for n in names])
+    ax.set_xlim(0, max(wall.values()) * 1.35)
+    ax.set_ylim(len(names) - 0.5, -0.75)
+    ax.set_title("One step, pass by pass (the element loop last)", fontsize=10)
+    ax.set_xlabel(f"ns per element-step, one thread (DOLFINx's tuned step: {dolfinx_ns:.1f} ns)")
+    ax.legend(fontsize=7, ncol=5, loc="upper center", bbox_to_anchor=(0.5, -0.25))
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
 
 
 if __name__ == "__main__":
