@@ -33,7 +33,7 @@ CASES = {"default element": "BM_GrindTime/target_elements:16500/threads:1",
 
 
 def ours(bench):
-    """Per case: the median wall ns per element-step of 3 repetitions, and its passes' (name: ns)."""
+    """Per case: median wall ns per element-step of 3 repetitions, and its passes (name: ns)."""
     pattern = "^(" + "|".join(re.escape(c) + "/" for c in CASES.values()) + ")"
     out = subprocess.run([bench, f"--benchmark_filter={pattern}", "--benchmark_repetitions=3",
                           "--benchmark_report_aggregates_only=true"],
