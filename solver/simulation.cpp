@@ -392,7 +392,7 @@ RunResult run_simulation(const Problem& problem, const SolverOptions& options,
                          mass.data(), ax.data(), ay.data(), vx.data(), vy.data());
     };
     if (threads == 1) {
-      // The passes back to back: one clock read between two (~30 ns; a pass takes ~10-150 us at
+      // The passes back to back: one clock read between two (~30 ns; a pass takes ~5-170 us at
       // 16.5k elements).
       auto& seconds = pass_seconds[0];
       auto last = Clock::now();
