@@ -5,7 +5,9 @@
 // Each iteration runs the baseline problem for `kSteps` steps and subtracts a run of
 // `kWarm` steps, so meshing and set-up are excluded; diagnostics are off (history every 1 s).
 // Beside the grind time, each pass of the step as ns per element-step (pass_*_ns: the passes the
-// element runs, RunResult::pass_time_s), so that a change to one pass shows where it acts.
+// element runs, RunResult::pass_time_s), so that a change to one pass shows where it acts. And the
+// machine's memory bandwidth on one and two threads (BM_StreamTriad), against the node passes'
+// scaling.
 //   build/bench/bench_solver --benchmark_repetitions=5 --benchmark_report_aggregates_only=true
 #include <benchmark/benchmark.h>
 #include <time.h>
@@ -14,6 +16,7 @@
 #include <chrono>
 #include <map>
 #include <string>
+#include <vector>
 
 #include "solver/gmsh_mesher.hpp"
 #include "solver/run_spec.hpp"
@@ -137,6 +140,30 @@ BENCHMARK(BM_GrindTimePeerPhysics)
     ->UseManualTime()
     ->Unit(benchmark::kMillisecond)
     ->Iterations(3);
+
+// The machine's memory bandwidth for one and two threads: STREAM's triad a = b + s c over three
+// arrays of doubles (bytes counted as STREAM does: 24 per index, the write-allocate read not
+// counted), the indices split in two halves as the step's node passes split the nodes. Whether two
+// threads stream twice what one does bounds how those passes scale: at 264k elements one step's
+// node rows and nodal arrays take ~13 MB (docs/performance.md, "Pass by pass").
+void BM_StreamTriad(benchmark::State& state) {
+  const auto n = static_cast<std::ptrdiff_t>(state.range(0) * 1024 * 1024 / (3 * sizeof(double)));
+  const int threads = static_cast<int>(state.range(1));
+  std::vector<double> a(n), b(n), c(n);
+#pragma omp parallel for num_threads(threads) schedule(static)  // first touch by the owner
+  for (std::ptrdiff_t i = 0; i < n; ++i) a[i] = 0, b[i] = 1, c[i] = 2;
+  for (auto _ : state) {
+#pragma omp parallel for num_threads(threads) schedule(static)
+    for (std::ptrdiff_t i = 0; i < n; ++i) a[i] = b[i] + 0.5 * c[i];
+    benchmark::DoNotOptimize(a.data());
+    benchmark::ClobberMemory();
+  }
+  state.SetBytesProcessed(state.iterations() * n * 3 * static_cast<int64_t>(sizeof(double)));
+}
+BENCHMARK(BM_StreamTriad)
+    ->ArgsProduct({{1, 4, 16, 64, 256}, {1, 2}})
+    ->ArgNames({"MiB", "threads"})
+    ->UseRealTime();
 
 // Wall time of the full baseline run (800 ns, diagnostics every 1 ns, no field output).
 void BM_BaselineRun(benchmark::State& state) {
