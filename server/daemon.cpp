@@ -33,7 +33,7 @@ namespace fs = std::filesystem;
 
 namespace {
 
-// Largest mesh a client may upload (held in memory while it arrives): 64 MiB is an ASCII .msh of
+// Largest mesh a client may upload (streamed to disk as it arrives): 64 MiB is an ASCII .msh of
 // roughly 800,000 triangles; the thesis's meshes are under 2 MB.
 constexpr int64_t kMaxMeshUploadBytes = 64ll << 20;
 
@@ -152,10 +152,14 @@ Daemon::Daemon(DaemonConfig config) : impl_(std::make_unique<Impl>()) {
   rc.admission.max_memory_bytes = config.max_job_memory_bytes;
   rc.admission.max_disk_bytes = config.max_job_disk_bytes;
   rc.mesher = find_mesher();
-  if (rc.mesher.empty() && config.executor == "local") {
+  if (rc.mesher.empty()) {
     d.setup_warnings.push_back(
-        "softshock-mesh is not installed beside softshockd: Gmsh meshing runs in the daemon, "
-        "where a cancel or the wall-time limit waits until it ends");
+        "softshock-mesh is not installed beside softshockd: mesh uploads are refused (they are "
+        "checked in it)" +
+        std::string(config.executor == "local"
+                        ? ", and Gmsh meshing runs in the daemon, where a cancel or the wall-time "
+                          "limit waits until it ends"
+                        : ""));
     log_warning(d.setup_warnings.back());
   }
   d.runner = std::make_unique<JobRunner>(rc, *d.catalogue, d.events);
@@ -205,8 +209,11 @@ Daemon::Daemon(DaemonConfig config) : impl_(std::make_unique<Impl>()) {
   sc.limits = rc.limits;
   sc.admission = rc.admission;
   sc.max_streams = config.max_streams;
-  d.meshes = std::make_unique<MeshStore>(d.runner->meshes_dir(), kMaxMeshUploadBytes,
-                                         rc.limits.max_elements);
+  MeshStoreLimits store_limits;
+  store_limits.max_bytes = kMaxMeshUploadBytes;
+  store_limits.max_elements = rc.limits.max_elements;
+  d.meshes = std::make_unique<MeshStore>(d.runner->meshes_dir(), store_limits,
+                                         mesh_validator_in_child(rc.mesher, MeshCheckLimits{}));
   d.service = std::make_unique<SimulationService>(sc, *d.catalogue, *d.scheduler, d.events,
                                                   *d.runner, *d.auth, *d.meshes);
   d.mesh_service = std::make_unique<MeshService>(*d.meshes, *d.catalogue, *d.auth);

@@ -10,6 +10,7 @@
 #include <filesystem>
 #include <fstream>
 #include <mutex>
+#include <new>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -98,6 +99,8 @@ Mesh call(const gp::Request& request) {
       return mesh;
     case gp::kInvalidArgument:
       throw std::invalid_argument(error);
+    case gp::kOutOfMemory:
+      throw std::bad_alloc();
     default:
       throw std::runtime_error(error);
   }

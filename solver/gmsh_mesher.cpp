@@ -35,6 +35,8 @@
 #include <utility>
 #include <vector>
 
+#include "solver/msh_counts.hpp"
+
 namespace softshock {
 namespace {
 
@@ -299,6 +301,8 @@ Mesh read_gmsh_file(const std::string& path) {
     if (!starts_like_msh(copy.string())) {
       throw std::runtime_error("not a Gmsh MSH file (no $MeshFormat header)");
     }
+    // Gmsh allocates for the counts a header declares before it reads the items.
+    (void)check_msh_counts(copy.string());
     Mesh mesh;
     {
       GmshSession session;

@@ -4,6 +4,7 @@
 #include "solver/gmsh_plugin.hpp"
 
 #include <exception>
+#include <new>
 #include <stdexcept>
 
 #include "solver/gmsh_mesher.hpp"
@@ -33,6 +34,8 @@ extern "C" __attribute__((visibility("default"))) int softshock_gmsh_mesher_mesh
     }
     *error = "unknown mesher request";
     return gp::kInvalidArgument;
+  } catch (const std::bad_alloc&) {  // also where building the message itself ran out
+    return gp::kOutOfMemory;
   } catch (const std::invalid_argument& e) {
     *error = e.what();
     return gp::kInvalidArgument;

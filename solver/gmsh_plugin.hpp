@@ -11,7 +11,7 @@
 
 namespace softshock::gmsh_plugin {
 
-constexpr int kAbiVersion = 1;
+constexpr int kAbiVersion = 2;
 constexpr const char* kModuleName = "libsoftshock_gmsh_mesher.so";
 constexpr const char* kAbiSymbol = "softshock_gmsh_mesher_abi";    // AbiFn
 constexpr const char* kMeshSymbol = "softshock_gmsh_mesher_mesh";  // MeshFn
@@ -27,7 +27,7 @@ struct Request {
 };
 
 // What a call returned: the C++ exception the in-process mesher threw, as a code.
-enum Status : int { kOk = 0, kInvalidArgument = 1, kRuntimeError = 2 };
+enum Status : int { kOk = 0, kInvalidArgument = 1, kRuntimeError = 2, kOutOfMemory = 3 };
 
 using AbiFn = int (*)(std::size_t* mesh_size);
 // Fills *out (finalized mesh) or *error; never throws.

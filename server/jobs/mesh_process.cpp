@@ -3,6 +3,8 @@
 #include <google/protobuf/struct.pb.h>
 #include <google/protobuf/util/json_util.h>
 
+#include <chrono>
+#include <csignal>
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
@@ -123,6 +125,106 @@ std::optional<Mesh> mesh_in_child(const MesherCommand& command, const v1::RunSpe
   }
   if (report) read_report(r.out, report);
   return mesh;
+}
+
+namespace {
+
+// Every occurrence of `from` in `text` replaced by `to`.
+void replace_all(std::string& text, const std::string& from, const std::string& to) {
+  if (from.empty()) return;
+  for (std::size_t at = text.find(from); at != std::string::npos;
+       at = text.find(from, at + to.size())) {
+    text.replace(at, from.size(), to);
+  }
+}
+
+std::int64_t count_field(const google::protobuf::Struct& s, const char* name) {
+  const auto it = s.fields().find(name);
+  return it == s.fields().end() ? -1 : static_cast<std::int64_t>(it->second.number_value());
+}
+
+}  // namespace
+
+MeshFileCheck check_mesh_file_in_child(const std::string& executable, const std::string& path,
+                                       const std::string& display_name, const std::string& tmp_dir,
+                                       const MeshCheckLimits& limits) {
+  std::error_code ec;
+  fs::create_directories(tmp_dir, ec);
+  if (ec) throw MeshingFailed("cannot create the mesh checker's folder: " + ec.message(), false);
+  struct RemoveDir {
+    fs::path dir;
+    ~RemoveDir() {
+      std::error_code ignored;
+      fs::remove_all(dir, ignored);
+    }
+  } remove_dir{tmp_dir};
+  const std::vector<std::string> argv = {
+      executable, "--check", path,
+      // the caller's limit applies to the counts
+      "--max-elements", "2000000000", "--max-memory", std::to_string(limits.max_memory_bytes),
+      "--max-cpu-seconds", std::to_string(limits.max_cpu_seconds), "--tmp-dir", tmp_dir};
+  const auto deadline =
+      std::chrono::steady_clock::now() + std::chrono::duration<double>(limits.max_wall_seconds);
+  const CommandResult r =
+      run_command(argv, [&] { return std::chrono::steady_clock::now() >= deadline; });
+  // The child names the file by the path it was given; the client knows it by its own name.
+  std::string why = strip_prefix(last_line(r.err), std::string(kMesherName) + ": ");
+  replace_all(why, path, display_name);
+  replace_all(why, tmp_dir, "(temporary folder)");
+  why = strip_prefix(strip_prefix(why, "unusable mesh: "),
+                     "read_gmsh_file: '" + display_name + "': ");
+  if (r.stopped) {
+    throw MeshingFailed("checking the mesh took longer than " + number(limits.max_wall_seconds) +
+                            " s (the daemon's limit)",
+                        true);
+  }
+  if (r.status == 0) {
+    google::protobuf::Struct s;
+    if (google::protobuf::util::JsonStringToMessage(last_line(r.out), &s).ok()) {
+      MeshFileCheck check{count_field(s, "nodes"), count_field(s, "elements"),
+                          static_cast<int>(count_field(s, "dimension"))};
+      if (check.nodes > 0 && check.elements > 0) return check;
+    }
+    throw MeshingFailed(std::string(kMesherName) + " --check printed no counts", false);
+  }
+  if (r.status == 2) throw MeshingFailed(why, true);
+  if (r.signal == SIGXCPU || r.signal == SIGKILL) {
+    // SIGKILL: the CPU limit's hard stop, or the kernel's OOM killer.
+    throw MeshingFailed("checking the mesh ran out of its limits (" +
+                            std::to_string(limits.max_cpu_seconds) + " s of CPU time, " +
+                            std::to_string(limits.max_memory_bytes >> 20) + " MiB of memory)",
+                        true);
+  }
+  if (r.signal != 0) {
+    const char* name = ::sigdescr_np(r.signal);
+    throw MeshingFailed("Gmsh crashed reading it (signal " + std::to_string(r.signal) + ", " +
+                            (name ? name : "?") + ")",
+                        true);
+  }
+  throw MeshingFailed(why.empty() ? std::string(kMesherName) + " --check exited with status " +
+                                        std::to_string(r.status)
+                                  : why,
+                      false);
+}
+
+MeshValidator mesh_validator_in_child(std::string executable, MeshCheckLimits limits) {
+  return [executable = std::move(executable), limits](
+             const std::string& path, const std::string& display_name,
+             const std::string& scratch_dir) -> MeshCounts {
+    if (executable.empty()) {
+      throw std::runtime_error(std::string(kMesherName) +
+                               " is not installed beside softshockd: uploaded meshes cannot be "
+                               "checked, so none are accepted");
+    }
+    try {
+      const MeshFileCheck check =
+          check_mesh_file_in_child(executable, path, display_name, scratch_dir, limits);
+      return {check.nodes, check.elements};
+    } catch (const MeshingFailed& e) {
+      if (!e.invalid_spec()) throw;
+      throw SpecError("data", "'" + display_name + "' is not a usable Gmsh mesh: " + e.what());
+    }
+  };
 }
 
 std::string find_mesher() {

@@ -10,6 +10,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "server/store/mesh_store.hpp"
 #include "softshock/v1/spec.pb.h"
 #include "solver/mesh.hpp"
 #include "solver/run_spec.hpp"
@@ -43,6 +44,33 @@ std::optional<Mesh> mesh_in_child(const MesherCommand& command, const v1::RunSpe
                                   const std::string& work_dir,
                                   const std::function<bool()>& should_stop,
                                   MeshingReport* report = nullptr);
+
+// An uploaded mesh file checked by `softshock-mesh --check` (solver/app/softshock_mesh.cpp): the
+// counts its headers declare and Gmsh's reading, in a child confined to these limits,
+// so that a file that crashes Gmsh or makes it allocate without bound costs that child, never
+// the daemon (a 9.7 KB file with one node tag changed to 2^63 - 1 made Gmsh segfault; a 161-byte
+// header declaring 1.5e8 nodes made it take 3.2 GB).
+struct MeshCheckLimits {
+  std::uint64_t max_memory_bytes = std::uint64_t{2} << 30;  // the child's address space
+  int max_cpu_seconds = 60;
+  double max_wall_seconds = 120;  // then the child is killed
+};
+struct MeshFileCheck {
+  std::int64_t nodes = 0, elements = 0;
+  int dimension = 0;
+};
+// Checks `path`; the child's temporary files go into `tmp_dir` (created and removed here).
+// Messages name the file as `display_name`, never by a server path. Throws
+// MeshingFailed(reason, true) for a file that is not a usable mesh -- the checker refused it,
+// crashed on it, ran out of memory or time on it -- and MeshingFailed(reason, false) when the
+// checker could not run.
+MeshFileCheck check_mesh_file_in_child(const std::string& executable, const std::string& path,
+                                       const std::string& display_name, const std::string& tmp_dir,
+                                       const MeshCheckLimits& limits);
+
+// The daemon's MeshStore validator: check_mesh_file_in_child with `executable` (softshock-mesh;
+// empty = none installed, every upload refused), a file it refuses as SpecError("data", ...).
+MeshValidator mesh_validator_in_child(std::string executable, MeshCheckLimits limits);
 
 // softshock-mesh beside the running executable (installed layout), else the one this build
 // tree made; empty when neither exists.

@@ -1,9 +1,16 @@
 #include "server/store/mesh_store.hpp"
 
+#include <fcntl.h>
 #include <google/protobuf/util/json_util.h>
 #include <google/protobuf/util/time_util.h>
+#include <sys/statvfs.h>
+#include <unistd.h>
 
 #include <algorithm>
+#include <cerrno>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <random>
@@ -11,8 +18,7 @@
 #include <stdexcept>
 
 #include "server/jobs/job_runner.hpp"
-#include "server/store/spec_hash.hpp"
-#include "solver/gmsh_mesher.hpp"
+#include "server/store/resource_exhausted.hpp"
 #include "solver/io/durable_file.hpp"
 
 namespace softshock::server {
@@ -22,6 +28,8 @@ namespace fs = std::filesystem;
 namespace {
 
 constexpr const char* kUploads = "uploads";
+// Names of what an upload leaves while it is in progress (swept at start-up).
+constexpr std::string_view kStagedPrefix = ".staged-", kCheckPrefix = ".check-";
 
 bool is_mesh_id(const std::string& id) {
   return id.size() == 64 && std::all_of(id.begin(), id.end(), [](char c) {
@@ -46,74 +54,187 @@ std::optional<v1::Mesh> read_record(const fs::path& json_path) {
   return mesh;
 }
 
+std::string random_suffix() {
+  static std::mutex mutex;
+  static std::mt19937_64 rng{std::random_device{}()};
+  std::lock_guard<std::mutex> lock(mutex);
+  char buf[17];
+  std::snprintf(buf, sizeof buf, "%016llx", static_cast<unsigned long long>(rng()));
+  return buf;
+}
+
+std::string megabytes(double bytes) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.0f MiB", bytes / (1 << 20));
+  return buf;
+}
+
 }  // namespace
 
 std::string uploaded_mesh_file(const std::string& id) {
   return std::string(kUploads) + "/" + id + ".msh";
 }
 
-MeshStore::MeshStore(std::string meshes_dir, int64_t max_bytes, int64_t max_elements)
-    : meshes_dir_(std::move(meshes_dir)),
-      uploads_dir_((fs::path(meshes_dir_) / kUploads).string()),
-      max_bytes_(max_bytes),
-      max_elements_(max_elements) {
-  fs::create_directories(uploads_dir_);
+void check_mesh_file_name(std::string_view name) {
+  if (name.empty() || name.size() > kMaxMeshFileNameBytes) {
+    throw SpecError("file_name", "must be 1 to " + std::to_string(kMaxMeshFileNameBytes) +
+                                     " bytes, got " + std::to_string(name.size()));
+  }
+  if (name == "." || name == "..") throw SpecError("file_name", "must not be '.' or '..'");
+  for (unsigned char c : name) {
+    if (c == '/' || c == '\\') {
+      throw SpecError("file_name", "must be a file name without a folder (no '/' or '\\')");
+    }
+    if (c < 0x20 || c == 0x7f) {
+      throw SpecError("file_name", "must not contain control characters (byte " +
+                                       std::to_string(static_cast<int>(c)) + ")");
+    }
+  }
 }
 
-v1::Mesh MeshStore::add(const std::string& bytes, const std::string& file_name, int64_t now_us) {
-  if (bytes.empty()) throw SpecError("data", "the mesh file is empty");
-  if (static_cast<int64_t>(bytes.size()) > max_bytes_) {
-    throw SpecError("data", "the mesh file has more than " + std::to_string(max_bytes_) +
+MeshStore::MeshStore(std::string meshes_dir, MeshStoreLimits limits, MeshValidator validate)
+    : meshes_dir_(std::move(meshes_dir)),
+      uploads_dir_((fs::path(meshes_dir_) / kUploads).string()),
+      limits_(std::move(limits)),
+      validate_(std::move(validate)) {
+  fs::create_directories(uploads_dir_);
+  sweep();
+}
+
+void MeshStore::sweep() {
+  std::error_code ec;
+  for (const auto& entry : fs::directory_iterator(uploads_dir_, ec)) {
+    const std::string name = entry.path().filename().string();
+    if (name.starts_with(kStagedPrefix) || name.starts_with(kCheckPrefix) ||
+        name.ends_with(".tmp")) {
+      std::error_code ignored;
+      fs::remove_all(entry.path(), ignored);
+    }
+  }
+}
+
+double MeshStore::free_bytes() const {
+  if (limits_.free_bytes) return limits_.free_bytes(uploads_dir_);
+  struct statvfs st {};
+  if (::statvfs(uploads_dir_.c_str(), &st) != 0) return INFINITY;  // unknown: do not block
+  return static_cast<double>(st.f_bavail) * static_cast<double>(st.f_frsize);
+}
+
+MeshStore::Upload::Upload(MeshStore& store, std::string path, int fd)
+    : store_(store), path_(std::move(path)), fd_(fd) {}
+
+MeshStore::Upload::~Upload() {
+  ::close(fd_);
+  if (!committed_) ::unlink(path_.c_str());
+  --store_.uploads_in_progress_;
+}
+
+void MeshStore::Upload::append(std::string_view bytes) {
+  if (size_ + static_cast<std::int64_t>(bytes.size()) > store_.limits_.max_bytes) {
+    throw SpecError("data", "the mesh file has more than " +
+                                std::to_string(store_.limits_.max_bytes) +
                                 " bytes (the daemon's upload limit)");
   }
-  const std::string id = sha256_hex(bytes);
-  if (auto existing = get(id)) return *existing;  // idempotent: same bytes, same mesh
+  // The reserve is looked at every 4 MiB: a disk that fills meanwhile still ends in ENOSPC below.
+  const std::int64_t kCheckEvery = 4 << 20;
+  if (size_ / kCheckEvery != (size_ + static_cast<std::int64_t>(bytes.size())) / kCheckEvery) {
+    const double free = store_.free_bytes();
+    if (free - static_cast<double>(bytes.size()) < store_.limits_.min_free_bytes) {
+      throw ResourceExhausted(
+          "the daemon's disk has " + megabytes(free) + " free, at its reserve of " +
+          megabytes(store_.limits_.min_free_bytes) + " (delete results or meshes to make room)");
+    }
+  }
+  std::size_t done = 0;
+  while (done < bytes.size()) {
+    const ssize_t n = ::write(fd_, bytes.data() + done, bytes.size() - done);
+    if (n < 0 && errno == EINTR) continue;
+    if (n < 0 && (errno == ENOSPC || errno == EDQUOT)) {
+      throw ResourceExhausted("the daemon's disk is full (delete results or meshes to make room)");
+    }
+    if (n <= 0)
+      throw std::runtime_error(std::string("cannot stage the upload: ") + std::strerror(errno));
+    done += static_cast<std::size_t>(n);
+  }
+  hash_.update(bytes);
+  size_ += static_cast<std::int64_t>(bytes.size());
+}
 
-  // Validate exactly as a mesh file named by a spec is read (Gmsh picks the format by the
-  // extension, hence .msh), before anything is visible under the final name.
-  std::random_device rd;
-  const fs::path staged = fs::path(uploads_dir_) /
-                          (".staged-" + std::to_string(rd()) + "-" + id.substr(0, 12) + ".msh");
-  Mesh mesh;
+std::unique_ptr<MeshStore::Upload> MeshStore::begin_upload() {
+  if (++uploads_in_progress_ > limits_.max_concurrent_uploads) {
+    --uploads_in_progress_;
+    throw ResourceExhausted("the daemon is receiving " +
+                            std::to_string(limits_.max_concurrent_uploads) +
+                            " uploads already; retry in a moment");
+  }
+  int fd = -1;
+  std::string path;
   try {
-    write_durably(staged, bytes);
-    mesh = read_gmsh_file(staged.string());
-  } catch (const std::exception& e) {
-    std::error_code ignored;
-    fs::remove(staged, ignored);
-    std::string why = e.what();
-    const std::size_t at = why.find(staged.string());  // the client never saw this path
-    if (at != std::string::npos) why.replace(at, staged.string().size(), file_name);
-    throw SpecError("data", "not a usable Gmsh mesh: " + why);
+    if (const double free = free_bytes(); free < limits_.min_free_bytes) {
+      throw ResourceExhausted("the daemon's disk has " + megabytes(free) +
+                              " free, below its reserve of " + megabytes(limits_.min_free_bytes) +
+                              " (delete results or meshes to make room)");
+    }
+    path =
+        (fs::path(uploads_dir_) / (std::string(kStagedPrefix) + random_suffix() + ".msh")).string();
+    fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0644);
+    if (fd < 0) {
+      throw std::runtime_error(std::string("cannot stage an upload: ") + std::strerror(errno));
+    }
+  } catch (...) {
+    --uploads_in_progress_;
+    throw;
   }
-  if (static_cast<int64_t>(mesh.element_count()) > max_elements_) {
-    std::error_code ignored;
-    fs::remove(staged, ignored);
-    throw SpecError("data", "the mesh has " + std::to_string(mesh.element_count()) +
-                                " elements, more than " + std::to_string(max_elements_));
+  return std::unique_ptr<Upload>(new Upload(*this, path, fd));
+}
+
+v1::Mesh MeshStore::commit(Upload& upload, const std::string& file_name, std::int64_t now_us) {
+  check_mesh_file_name(file_name);
+  if (upload.size_ == 0) throw SpecError("data", "the mesh file is empty");
+  const std::string id = upload.hash_.hex_digest();
+  if (auto existing = get(id)) return *existing;  // idempotent: same bytes, same mesh
+  // The data on the disk before it is checked and renamed into place.
+  if (::fsync(upload.fd_) != 0) {
+    if (errno == ENOSPC || errno == EDQUOT) {
+      throw ResourceExhausted("the daemon's disk is full (delete results or meshes to make room)");
+    }
+    throw std::runtime_error(std::string("cannot stage the upload: ") + std::strerror(errno));
   }
+  // Checked exactly as a mesh file named by a spec is read, before anything is visible under
+  // its final name; the validator names the file as the client does.
+  const MeshCounts counts =
+      validate_(upload.path_, file_name,
+                (fs::path(uploads_dir_) / (std::string(kCheckPrefix) + random_suffix())).string());
+  if (counts.elements > limits_.max_elements) {
+    throw SpecError("data", "the mesh has " + std::to_string(counts.elements) +
+                                " elements, more than " + std::to_string(limits_.max_elements));
+  }
+
   v1::Mesh record;
   record.set_name("meshes/" + id);
   record.set_id(id);
-  record.set_size_bytes(static_cast<int64_t>(bytes.size()));
-  record.set_nodes(static_cast<int64_t>(mesh.node_count()));
-  record.set_elements(static_cast<int64_t>(mesh.element_count()));
-  record.set_file_name(fs::path(file_name).filename().string());
+  record.set_size_bytes(upload.size_);
+  record.set_nodes(counts.nodes);
+  record.set_elements(counts.elements);
+  record.set_file_name(file_name);
   *record.mutable_create_time() = google::protobuf::util::TimeUtil::MicrosecondsToTimestamp(now_us);
   std::string json;
   (void)google::protobuf::util::MessageToJsonString(record, &json);
 
   std::lock_guard<std::mutex> lock(write_mutex_);
-  if (auto existing = get(id)) {  // a concurrent upload of the same bytes won
-    std::error_code ignored;
-    fs::remove(staged, ignored);
-    return *existing;
-  }
+  if (auto existing = get(id)) return *existing;  // a concurrent upload of the same bytes won
   // The file first, then its record: a record always has its file.
-  fs::rename(staged, fs::path(uploads_dir_) / (id + ".msh"));
+  rename_file(upload.path_, fs::path(uploads_dir_) / (id + ".msh"));
+  upload.committed_ = true;
   write_durably(fs::path(uploads_dir_) / (id + ".json"), json);
   fsync_path(uploads_dir_, true);
   return record;
+}
+
+v1::Mesh MeshStore::add(std::string_view bytes, const std::string& file_name, std::int64_t now_us) {
+  auto upload = begin_upload();
+  upload->append(bytes);
+  return commit(*upload, file_name, now_us);
 }
 
 std::optional<v1::Mesh> MeshStore::get(const std::string& id) const {

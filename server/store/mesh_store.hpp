@@ -1,16 +1,27 @@
 // Meshes uploaded by clients: DATA/meshes/uploads/{id}.msh, id = SHA-256 of the bytes, with a
 // {id}.json record (the Mesh message) beside it; and the daemon's rules for the mesh a spec names
 // (geometry.mesh_id and geometry.mesh_file, both resolved under DATA/meshes/).
+//
+// An upload streams to a staged file (uploads/.staged-*) as it arrives -- never whole in memory --
+// and is hashed on the way; the bytes are checked by a validator the daemon gives (a confined
+// child process, server/jobs/mesh_process.hpp: Gmsh never reads an uploaded file inside the
+// daemon), then renamed into place. Every failure removes its staged file; what a crash leaves
+// (staged files, the checker's folders) is swept when the store opens.
 #pragma once
 
+#include <atomic>
 #include <cstdint>
+#include <functional>
+#include <memory>
 #include <mutex>
 #include <optional>
 #include <shared_mutex>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "server/jobs/grid.hpp"
+#include "server/store/spec_hash.hpp"
 #include "softshock/v1/service.pb.h"
 #include "solver/run_spec.hpp"
 
@@ -20,17 +31,71 @@ namespace softshock::server {
 // DATA/meshes/ (geometry.mesh_file's root).
 std::string uploaded_mesh_file(const std::string& id);
 
+// What a validator found in a usable mesh file.
+struct MeshCounts {
+  std::int64_t nodes = 0, elements = 0;
+};
+// Checks the staged file at `path` (the client knows it as `display_name`), with `scratch_dir`
+// (not yet existing; swept at start-up) for any files of its own; throws SpecError("data", rule)
+// for bytes that are not a usable mesh, anything else when it could not check.
+using MeshValidator = std::function<MeshCounts(
+    const std::string& path, const std::string& display_name, const std::string& scratch_dir)>;
+
+// Longest file_name an upload may carry (bytes; a file name on Linux).
+inline constexpr std::size_t kMaxMeshFileNameBytes = 255;
+// Throws SpecError("file_name", rule) unless `name` is a plain file name: 1 to 255 bytes, no
+// '/' or '\\', no control characters, not "." or "..".
+void check_mesh_file_name(std::string_view name);
+
+struct MeshStoreLimits {
+  std::int64_t max_bytes = 64ll << 20;  // largest upload
+  std::int64_t max_elements = 2'000'000;
+  int max_concurrent_uploads = 4;
+  // Uploads leave at least this much free on the data folder's file system (the jobs' reserve).
+  double min_free_bytes = 256.0 * (1 << 20);
+  // Free bytes of the folder; unset = statvfs.
+  std::function<double(const std::string& dir)> free_bytes;
+};
+
 class MeshStore {
  public:
-  // meshes_dir: DATA/meshes (uploads/ is created inside). max_bytes: largest upload.
-  MeshStore(std::string meshes_dir, int64_t max_bytes, int64_t max_elements);
+  // meshes_dir: DATA/meshes (uploads/ is created inside, and swept of what a crash left).
+  MeshStore(std::string meshes_dir, MeshStoreLimits limits, MeshValidator validate);
 
   const std::string& meshes_dir() const { return meshes_dir_; }
-  int64_t max_bytes() const { return max_bytes_; }
+  std::int64_t max_bytes() const { return limits_.max_bytes; }
 
-  // Stores the bytes unless a mesh with the same id exists (then returns that one). Throws
-  // SpecError("data", rule) for bytes that are not a usable mesh.
-  v1::Mesh add(const std::string& bytes, const std::string& file_name, int64_t now_us);
+  // One upload in progress: a staged file that grows as parts arrive. Removed unless committed.
+  class Upload {
+   public:
+    ~Upload();
+    Upload(const Upload&) = delete;
+    Upload& operator=(const Upload&) = delete;
+    // Throws SpecError("data", ...) past the size limit, ResourceExhausted when the disk (or its
+    // reserve) is full.
+    void append(std::string_view bytes);
+    std::int64_t size() const { return size_; }
+
+   private:
+    friend class MeshStore;
+    Upload(MeshStore& store, std::string path, int fd);
+    MeshStore& store_;
+    std::string path_;
+    int fd_;
+    std::int64_t size_ = 0;
+    Sha256 hash_;
+    bool committed_ = false;
+  };
+  // Throws ResourceExhausted when max_concurrent_uploads are in progress or the disk is within
+  // its reserve.
+  std::unique_ptr<Upload> begin_upload();
+  // Validates the staged bytes and stores them unless a mesh with the same id exists (then
+  // returns that one). `file_name` must pass check_mesh_file_name. Throws SpecError("data", rule)
+  // for bytes that are not a usable mesh.
+  v1::Mesh commit(Upload& upload, const std::string& file_name, std::int64_t now_us);
+  // begin_upload + append + commit, for bytes already at hand.
+  v1::Mesh add(std::string_view bytes, const std::string& file_name, std::int64_t now_us);
+
   std::optional<v1::Mesh> get(const std::string& id) const;
   // Ids in increasing order after `after` (exclusive), at most `limit`.
   std::vector<v1::Mesh> list(const std::string& after, int limit) const;
@@ -48,8 +113,13 @@ class MeshStore {
   }
 
  private:
+  double free_bytes() const;
+  void sweep();  // staged files, temporary records and checker folders a crash left
+
   std::string meshes_dir_, uploads_dir_;
-  int64_t max_bytes_, max_elements_;
+  MeshStoreLimits limits_;
+  MeshValidator validate_;
+  std::atomic<int> uploads_in_progress_{0};
   mutable std::shared_mutex use_mutex_;
   mutable std::mutex write_mutex_;  // one writer of uploads/ at a time
 };

@@ -14,20 +14,23 @@ using grpc::StatusCode;
 Status MeshService::UploadMesh(grpc::ServerContext* ctx,
                                grpc::ServerReader<v1::UploadMeshRequest>* reader, v1::Mesh* resp) {
   return guarded(auth_, ctx, "UploadMesh", [&]() -> Status {
-    std::string bytes, file_name;
+    // Each part goes to the staged file as it arrives: an upload never sits whole in memory, and
+    // a bounded number run at once (begin_upload refuses more).
+    auto upload = store_.begin_upload();
+    std::string file_name;
+    bool first = true;
     v1::UploadMeshRequest part;
     while (reader->Read(&part)) {
-      if (file_name.empty()) file_name = part.file_name();
-      // Stop reading at the cap: the rest of an oversized stream is never buffered.
-      if (static_cast<int64_t>(bytes.size() + part.data().size()) > store_.max_bytes()) {
-        return {StatusCode::INVALID_ARGUMENT, "data: the mesh file has more than " +
-                                                  std::to_string(store_.max_bytes()) +
-                                                  " bytes (the daemon's upload limit)"};
+      if (first) {
+        file_name = part.file_name().empty() ? "mesh.msh" : part.file_name();
+        check_mesh_file_name(file_name);  // before any data is written
+        first = false;
       }
-      bytes += part.data();
+      upload->append(part.data());  // stops at the size cap: the rest is never read
     }
     if (ctx->IsCancelled()) return {StatusCode::CANCELLED, "upload cancelled by the client"};
-    *resp = store_.add(bytes, file_name.empty() ? "mesh.msh" : file_name, now_us());
+    if (first) throw SpecError("data", "the mesh file is empty");
+    *resp = store_.commit(*upload, file_name, now_us());
     log_info("mesh ", resp->id().substr(0, 12), " uploaded (", resp->elements(), " elements, ",
              resp->size_bytes(), " bytes)");
     return Status::OK;

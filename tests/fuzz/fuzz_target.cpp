@@ -6,6 +6,9 @@
 //         admission (grids over 256 points are skipped: each point is a full spec pipeline)
 //   7..11 a serialized GetTimeSeries / GetModes / ListJobs / QueryJobs / GetGridReduction
 //         request, answered by the real SimulationService against a real finished job
+//   12    an uploaded mesh file (MSH bytes), through the daemon's MeshStore: staged, hashed,
+//         checked by the confined softshock-mesh child and stored or refused (the driver's
+//         --meshes mode feeds only this path; each execution starts a child)
 // Expected refusals (SpecError, a non-OK status) are fine; anything else escaping, or any
 // sanitizer report, is a finding. The entry point has libFuzzer's signature, so the same file
 // also links with clang's -fsanitize=fuzzer (docs/reliability.md).
@@ -20,12 +23,14 @@
 #include <memory>
 #include <random>
 #include <string>
+#include <string_view>
 
 #include "server/jobs/admission.hpp"
 #include "server/jobs/executor.hpp"
 #include "server/jobs/grid.hpp"
 #include "server/jobs/job_events.hpp"
 #include "server/jobs/job_runner.hpp"
+#include "server/jobs/mesh_process.hpp"
 #include "server/store/catalogue.hpp"
 #include "server/store/mesh_store.hpp"
 #include "server/transport/auth.hpp"
@@ -83,7 +88,11 @@ struct Fixture {
                                                [](const std::string&, CancelToken&) {});
     ServiceConfig sc;
     sc.limits = limits;
-    meshes = std::make_unique<MeshStore>(runner->meshes_dir(), 1 << 20, limits.max_elements);
+    MeshStoreLimits mesh_limits;
+    mesh_limits.max_bytes = 1 << 20;
+    mesh_limits.max_elements = limits.max_elements;
+    meshes = std::make_unique<MeshStore>(runner->meshes_dir(), mesh_limits,
+                                         mesh_validator_in_child(find_mesher(), {}));
     service = std::make_unique<SimulationService>(sc, *catalogue, *executor, events, *runner, auth,
                                                   *meshes);
   }
@@ -164,12 +173,38 @@ void count(const grpc::Status& s) {
   if (s.ok()) ++g_valid;
 }
 
+// Mesh uploads by outcome (the driver's report): stored, refused as unusable, of those the ones
+// whose checker crashed (a crash that would have been the daemon's with Gmsh in process).
+long long g_meshes_stored = 0, g_meshes_refused = 0, g_checker_crashes = 0;
+
+void mesh_upload(const std::string& bytes, Fixture& f) {
+  ++g_parsed;
+  try {
+    const v1::Mesh m = f.meshes->add(bytes, "fuzz.msh", 0);
+    ++g_valid, ++g_meshes_stored;
+    f.meshes->remove(m.id());  // keeps the folder small; the next identical input stores again
+  } catch (const SpecError& e) {
+    ++g_meshes_refused;
+    if (std::string_view(e.what()).find("Gmsh crashed reading it") != std::string_view::npos ||
+        std::string_view(e.what()).find("ran out of its limits") != std::string_view::npos) {
+      ++g_checker_crashes;
+    }
+  }
+}
+
 }  // namespace
 }  // namespace softshock::server
 
 extern "C" void softshock_fuzz_depth(long long* parsed, long long* valid) {
   *parsed = softshock::server::g_parsed;
   *valid = softshock::server::g_valid;
+}
+
+extern "C" void softshock_fuzz_mesh_outcomes(long long* stored, long long* refused,
+                                             long long* checker_crashes) {
+  *stored = softshock::server::g_meshes_stored;
+  *refused = softshock::server::g_meshes_refused;
+  *checker_crashes = softshock::server::g_checker_crashes;
 }
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
@@ -179,7 +214,10 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   Fixture& f = fixture();
   const std::string payload(reinterpret_cast<const char*>(data + 1), size - 1);
   grpc::ServerContext ctx;
-  switch (data[0] % 12) {
+  switch (data[0] % 13) {
+    case 12:
+      mesh_upload(payload, f);
+      break;
     case 6:
       grid_pipeline(payload, f);
       break;

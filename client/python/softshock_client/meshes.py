@@ -16,12 +16,17 @@ CHUNK_BYTES = 1 << 20  # well under gRPC's 4 MiB message limit
 
 
 def upload_requests(path: str) -> Iterator[service_pb2.UploadMeshRequest]:
-    with open(path, "rb") as f:
-        data = f.read()
+    """The file in parts of CHUNK_BYTES, read as they are sent (never whole in memory); the
+    first part names it."""
     name = os.path.basename(path)
-    for offset in range(0, max(len(data), 1), CHUNK_BYTES):
-        yield service_pb2.UploadMeshRequest(file_name=name if offset == 0 else "",
-                                            data=data[offset:offset + CHUNK_BYTES])
+    with open(path, "rb") as f:
+        first = True
+        while True:
+            data = f.read(CHUNK_BYTES)
+            if not data and not first:
+                return
+            yield service_pb2.UploadMeshRequest(file_name=name if first else "", data=data)
+            first = False
 
 
 def local_mesh_file(spec, base_dir: Optional[str]) -> Optional[str]:
