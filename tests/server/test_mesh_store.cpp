@@ -52,6 +52,20 @@ class MeshStoreTest : public ::testing::Test {
   fs::path dir_;
 };
 
+// FIPS 180-4's examples, and the same digest from parts as from the whole (ids and spec hashes
+// stored by earlier releases stay valid).
+TEST(Sha256, KnownDigestsWholeOrInParts) {
+  EXPECT_EQ(sha256_hex("abc"), "ba7816bf8f01cfea414140de5dae2223b00361a396177a9cb410ff61f20015ad");
+  EXPECT_EQ(sha256_hex(""), "e3b0c44298fc1c149afbf4c8996fb92427ae41e4649b934ca495991b7852b855");
+  const std::string two_blocks = "abcdbcdecdefdefgefghfghighijhijkijkljklmklmnlmnomnopnopq";
+  EXPECT_EQ(sha256_hex(two_blocks),
+            "248d6a61d20638b8e5c026930c3e6039a33ce45964ff2167f6ecedd419db06c1");
+  Sha256 parts;
+  for (std::size_t at = 0; at < two_blocks.size(); at += 5) parts.update(two_blocks.substr(at, 5));
+  EXPECT_EQ(parts.hex_digest(), sha256_hex(two_blocks));
+  EXPECT_EQ(parts.hex_digest(), sha256_hex(""));  // starts again, empty
+}
+
 TEST_F(MeshStoreTest, SameBytesSameIdStoredOnce) {
   MeshStore s = store();
   const std::string bytes = square_msh();
