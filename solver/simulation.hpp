@@ -58,14 +58,19 @@ std::string series_units(std::string_view name);
 // Fields at one instant: nodal vectors and per-element scalars.
 struct FieldFrame {
   double time_s = 0;
-  std::vector<double> displacement;   // N x 2, interleaved (ux, uy), m
-  std::vector<double> velocity;       // N x 2, m/s
+  int dimension = 2;                  // of the mesh: 2 (triangles) or 3 (tetrahedra)
+  std::vector<double> displacement;   // N x dimension, interleaved (ux, uy[, uz]), m
+  std::vector<double> velocity;       // N x dimension, m/s
   std::vector<double> J;              // per element
   std::vector<double> mean_stress;    // Pa, tension positive (includes viscous stress)
-  std::vector<double> radial_stress;  // Pa, sigma_rr in the current polar frame
-  std::vector<double> hoop_stress;    // Pa, sigma_tt
-  std::vector<double> von_mises;      // Pa (plane strain, includes sigma_zz)
-  std::vector<double> aspect_ratio;   // longest edge^2 / (2 area), current shape
+  // Pa, sigma_rr and sigma_tt in the current polar frame (3-D: cylindrical, about the z axis
+  // through the frame's origin)
+  std::vector<double> radial_stress;
+  std::vector<double> hoop_stress;
+  std::vector<double> von_mises;  // Pa (2-D: plane strain, includes sigma_zz)
+  // Longest edge / smallest altitude of the current shape (a triangle's longest edge^2 /
+  // (2 area); equilateral 1.1547, regular tetrahedron 1.2247)
+  std::vector<double> aspect_ratio;
 };
 
 struct Progress {
