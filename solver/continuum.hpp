@@ -1,14 +1,21 @@
 // The constitutive law and element kinematics as small inline functions, shared by the element
-// kernel (hot loop) and the diagnostics so the physics is written once. 2x2 in-plane tensors
-// are stored row-major as {xx, xy, yx, yy}; plane strain: F_zz = 1.
+// kernels (hot loops) and the diagnostics so the physics is written once. Tensors are templated
+// on the dimension (deal.II's `template <int dim>`): Tensor<2> is the plane-strain in-plane block
+// {xx, xy, yx, yy} (F_zz = 1, no out-of-plane coupling), Tensor<3> the full 3x3 {xx, xy, xz, yx,
+// yy, yz, zx, zy, zz}, both row-major. The scalar laws (Tait, neo-Hookean, viscosities, stable
+// step) are the same in both.
 #pragma once
 
 #include <array>
 #include <cmath>
+#include <cstddef>
 
 namespace softshock::continuum {
 
-using Mat2 = std::array<double, 4>;
+template <int dim>
+using Tensor = std::array<double, dim * dim>;
+using Mat2 = Tensor<2>;
+using Mat3 = Tensor<3>;
 
 // F = Ds * Dm^-1 with Ds = [x1 - x0, x2 - x0] (current edges), Dm^-1 precomputed.
 inline Mat2 deformation_gradient(double e1x, double e1y, double e2x, double e2y,
@@ -71,6 +78,44 @@ inline double stabilization_bulk_modulus(double beta_kappa, double element_stres
   return beta_kappa - 2.0 * element_stress;
 }
 
+// ---- 3-D kinematics (Tet4) -------------------------------------------------------------
+
+// F = Ds Dm^-1, Ds's columns the current edges e1, e2, e3 (from node 0), Dm^-1 precomputed.
+inline Mat3 deformation_gradient(double e1x, double e1y, double e1z, double e2x, double e2y,
+                                 double e2z, double e3x, double e3y, double e3z,
+                                 const Mat3& dm_inv) {
+  const double* m = dm_inv.data();
+  return {e1x * m[0] + e2x * m[3] + e3x * m[6], e1x * m[1] + e2x * m[4] + e3x * m[7],
+          e1x * m[2] + e2x * m[5] + e3x * m[8], e1y * m[0] + e2y * m[3] + e3y * m[6],
+          e1y * m[1] + e2y * m[4] + e3y * m[7], e1y * m[2] + e2y * m[5] + e3y * m[8],
+          e1z * m[0] + e2z * m[3] + e3z * m[6], e1z * m[1] + e2z * m[4] + e3z * m[7],
+          e1z * m[2] + e2z * m[5] + e3z * m[8]};
+}
+
+// Cofactor J F^-T: row i, column j is (-1)^(i+j) times the minor of F_ij.
+inline Mat3 cofactor(const Mat3& f) {
+  return {f[4] * f[8] - f[5] * f[7], f[5] * f[6] - f[3] * f[8], f[3] * f[7] - f[4] * f[6],
+          f[2] * f[7] - f[1] * f[8], f[0] * f[8] - f[2] * f[6], f[1] * f[6] - f[0] * f[7],
+          f[1] * f[5] - f[2] * f[4], f[2] * f[3] - f[0] * f[5], f[0] * f[4] - f[1] * f[3]};
+}
+
+// det F from F and its cofactor (expansion along the first row).
+inline double det(const Mat3& f, const Mat3& cof) {
+  return f[0] * cof[0] + f[1] * cof[1] + f[2] * cof[2];
+}
+inline double det(const Mat3& f) {
+  return det(f, cofactor(f));
+}
+
+// I1 = tr(F^T F).
+inline double first_invariant(const Mat3& f) {
+  double sum = 0.0;
+  for (double v : f) sum += v * v;
+  return sum;
+}
+
+// ---- the material ----------------------------------------------------------------------
+
 // Neo-Hookean deviatoric energy mu/2 (I1 J^-2/3 - 3).
 inline double neo_hookean_energy(double mu, double i1, double j_pow_minus_two_thirds) {
   return 0.5 * mu * (i1 * j_pow_minus_two_thirds - 3.0);
@@ -78,18 +123,26 @@ inline double neo_hookean_energy(double mu, double i1, double j_pow_minus_two_th
 
 inline constexpr double kThird = 1.0 / 3.0;
 
-// Elastic first Piola-Kirchhoff stress (in-plane block):
+// Elastic first Piola-Kirchhoff stress (2-D: the in-plane block):
 // P = sigma_m cof(F) + mu J^-2/3 (F - I1/3 F^-T), with F^-T = cof(F) / J; takes 1 / J (the kernel
 // computes it once for every term that divides by J).
-inline Mat2 elastic_piola_inv_j(const Mat2& f, const Mat2& cof, double inv_j, double mean_stress,
-                                double mu, double j_pow_minus_two_thirds) {
+// (N = dim * dim: Mat2 or Mat3, deduced.)
+template <std::size_t N>
+inline std::array<double, N> elastic_piola_inv_j(const std::array<double, N>& f,
+                                                 const std::array<double, N>& cof, double inv_j,
+                                                 double mean_stress, double mu,
+                                                 double j_pow_minus_two_thirds) {
   const double a = mu * j_pow_minus_two_thirds;
   const double s = mean_stress - a * first_invariant(f) * (kThird * inv_j);
-  return {s * cof[0] + a * f[0], s * cof[1] + a * f[1], s * cof[2] + a * f[2],
-          s * cof[3] + a * f[3]};
+  std::array<double, N> p;
+  for (std::size_t k = 0; k < N; ++k) p[k] = s * cof[k] + a * f[k];
+  return p;
 }
-inline Mat2 elastic_piola(const Mat2& f, const Mat2& cof, double j, double mean_stress, double mu,
-                          double j_pow_minus_two_thirds) {
+template <std::size_t N>
+inline std::array<double, N> elastic_piola(const std::array<double, N>& f,
+                                           const std::array<double, N>& cof, double j,
+                                           double mean_stress, double mu,
+                                           double j_pow_minus_two_thirds) {
   return elastic_piola_inv_j(f, cof, 1.0 / j, mean_stress, mu, j_pow_minus_two_thirds);
 }
 
@@ -143,6 +196,37 @@ inline Mat2 viscous_piola_inv(const Mat2& f, const Mat2& f_prev, const Mat2& cof
 inline Mat2 viscous_piola(const Mat2& f, const Mat2& f_prev, const Mat2& cof, double nu,
                           double zeta, double dt) {
   return viscous_piola_inv(f, f_prev, cof, nu, zeta, 1.0 / (det(f_prev) * dt));
+}
+
+// The same in 3-D, the full 3x3 deviator: l = ((F - F_prev) / dt) F_prev^-1 with F_prev^-1 =
+// cof(F_prev)^T / J_prev, d = sym(l), sigma_v = 2 nu (d - tr(d)/3 I) + zeta tr(d) I, P_v =
+// sigma_v cof(F). Takes cof_prev = cof(F_prev) and inv = 1 / (J_prev dt).
+inline Mat3 viscous_piola_inv(const Mat3& f, const Mat3& f_prev, const Mat3& cof_prev,
+                              const Mat3& cof, double nu, double zeta, double inv) {
+  Mat3 df;
+  for (int k = 0; k < 9; ++k) df[k] = f[k] - f_prev[k];
+  // l_ij = sum_k dF_ik (F_prev^-1)_kj = sum_k dF_ik cof_prev_jk / (J_prev dt)
+  Mat3 l;
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j)
+      l[3 * i + j] = (df[3 * i] * cof_prev[3 * j] + df[3 * i + 1] * cof_prev[3 * j + 1] +
+                      df[3 * i + 2] * cof_prev[3 * j + 2]) *
+                     inv;
+  const double trace = l[0] + l[4] + l[8];
+  const double diagonal = zeta * trace - 2.0 * nu * kThird * trace;
+  const double s00 = 2.0 * nu * l[0] + diagonal, s11 = 2.0 * nu * l[4] + diagonal,
+               s22 = 2.0 * nu * l[8] + diagonal;
+  const double s01 = nu * (l[1] + l[3]), s02 = nu * (l[2] + l[6]), s12 = nu * (l[5] + l[7]);
+  return {s00 * cof[0] + s01 * cof[3] + s02 * cof[6], s00 * cof[1] + s01 * cof[4] + s02 * cof[7],
+          s00 * cof[2] + s01 * cof[5] + s02 * cof[8], s01 * cof[0] + s11 * cof[3] + s12 * cof[6],
+          s01 * cof[1] + s11 * cof[4] + s12 * cof[7], s01 * cof[2] + s11 * cof[5] + s12 * cof[8],
+          s02 * cof[0] + s12 * cof[3] + s22 * cof[6], s02 * cof[1] + s12 * cof[4] + s22 * cof[7],
+          s02 * cof[2] + s12 * cof[5] + s22 * cof[8]};
+}
+inline Mat3 viscous_piola(const Mat3& f, const Mat3& f_prev, const Mat3& cof, double nu,
+                          double zeta, double dt) {
+  const Mat3 cof_prev = cofactor(f_prev);
+  return viscous_piola_inv(f, f_prev, cof_prev, cof, nu, zeta, 1.0 / (det(f_prev, cof_prev) * dt));
 }
 
 // Out-of-plane Cauchy viscous stress sigma_v,zz = (zeta - 2 nu / 3) tr(d), from the in-plane
@@ -212,9 +296,55 @@ inline double stable_step_sq(double h_sq, double c_sq, double longitudinal_visco
   return stable_step_sq_kinematic(h_sq, c_sq, longitudinal_viscosity * j / rho0);
 }
 
-// Aspect ratio of the current triangle: longest edge^2 / (2 area) (equilateral: 2/sqrt(3)).
+// Aspect ratio of the current triangle: longest edge^2 / (2 area) (equilateral: 2/sqrt(3)), which
+// is the longest edge over the smallest altitude.
 inline double aspect_ratio(double e1x, double e1y, double e2x, double e2y) {
   return longest_edge_sq(e1x, e1y, e2x, e2y) / (e1x * e2y - e1y * e2x);
+}
+
+// ---- 3-D element lengths (Tet4) ----------------------------------------------------------
+
+// The largest of the squared face-area vectors (times 2) of the tetrahedron with edges e1, e2, e3
+// from node 0: |e1 x e2|^2, |e2 x e3|^2, |e3 x e1|^2, |(e2 - e1) x (e3 - e1)|^2.
+inline double largest_face_sq(double e1x, double e1y, double e1z, double e2x, double e2y,
+                              double e2z, double e3x, double e3y, double e3z) {
+  auto cross_sq = [](double ax, double ay, double az, double bx, double by, double bz) {
+    const double cx = ay * bz - az * by, cy = az * bx - ax * bz, cz = ax * by - ay * bx;
+    return cx * cx + cy * cy + cz * cz;
+  };
+  const double a = cross_sq(e1x, e1y, e1z, e2x, e2y, e2z);
+  const double b = cross_sq(e2x, e2y, e2z, e3x, e3y, e3z);
+  const double c = cross_sq(e3x, e3y, e3z, e1x, e1y, e1z);
+  const double d = cross_sq(e2x - e1x, e2y - e1y, e2z - e1z, e3x - e1x, e3y - e1y, e3z - e1z);
+  const double ab = a > b ? a : b, cd = c > d ? c : d;  // no fmax: keeps the loop vectorised
+  return ab > cd ? ab : cd;
+}
+// The largest squared edge length of the tetrahedron (six edges).
+inline double longest_edge_sq(double e1x, double e1y, double e1z, double e2x, double e2y,
+                              double e2z, double e3x, double e3y, double e3z) {
+  auto sq = [](double x, double y, double z) { return x * x + y * y + z * z; };
+  const double a = sq(e1x, e1y, e1z), b = sq(e2x, e2y, e2z), c = sq(e3x, e3y, e3z);
+  const double d = sq(e2x - e1x, e2y - e1y, e2z - e1z), e = sq(e3x - e2x, e3y - e2y, e3z - e2z),
+               f = sq(e1x - e3x, e1y - e3y, e1z - e3z);
+  const double ab = a > b ? a : b, cd = c > d ? c : d, ef = e > f ? e : f;
+  const double abcd = ab > cd ? ab : cd;
+  return abcd > ef ? abcd : ef;
+}
+// Smallest altitude squared of a tetrahedron: (3 V / largest face area)^2 = (6 V)^2 / largest
+// |cross|^2, 6 V = det[e1 e2 e3].
+inline double smallest_altitude_sq(double six_volume, double largest_face_sq) {
+  return six_volume * six_volume / largest_face_sq;
+}
+// Aspect ratio of a tetrahedron, the longest edge over the smallest altitude (regular:
+// sqrt(3/2) = 1.2247), as for triangles.
+inline double aspect_ratio(double longest_edge_sq, double six_volume, double largest_face_sq) {
+  return std::sqrt(longest_edge_sq * largest_face_sq) / six_volume;
+}
+// The altitude of the regular tetrahedron of volume V, sqrt(2/3) (6 sqrt(2) V)^(1/3): the
+// continuous artificial viscosity's length, which an isochoric distortion (a sliver of the same
+// volume) leaves unchanged.
+inline double regular_tetrahedron_altitude(double volume) {
+  return std::sqrt(2.0 / 3.0) * std::cbrt(6.0 * std::sqrt(2.0) * volume);
 }
 
 }  // namespace softshock::continuum

@@ -8,6 +8,24 @@
 
 namespace softshock {
 
+ElementGeometry build_tri3_geometry(const Mesh& mesh) {
+  const std::size_t ne = mesh.element_count();
+  ElementGeometry g;
+  for (auto* v : {&g.node0, &g.node1, &g.node2}) v->resize(ne);
+  for (auto* v : {&g.dm_inv_xx, &g.dm_inv_xy, &g.dm_inv_yx, &g.dm_inv_yy, &g.area0}) v->resize(ne);
+  for (std::size_t e = 0; e < ne; ++e) {
+    const auto& t = mesh.triangles[e];
+    g.node0[e] = t[0], g.node1[e] = t[1], g.node2[e] = t[2];
+    const double a = mesh.x[t[1]] - mesh.x[t[0]], b = mesh.x[t[2]] - mesh.x[t[0]];
+    const double c = mesh.y[t[1]] - mesh.y[t[0]], d = mesh.y[t[2]] - mesh.y[t[0]];
+    const double det = a * d - b * c;  // Dm = [[a, b], [c, d]]
+    g.dm_inv_xx[e] = d / det, g.dm_inv_xy[e] = -b / det;
+    g.dm_inv_yx[e] = -c / det, g.dm_inv_yy[e] = a / det;
+    g.area0[e] = 0.5 * det;
+  }
+  return g;
+}
+
 void ElementState::resize(std::size_t elements) {
   for (auto* v : {&f_xx, &f_xy, &f_yx, &f_yy}) v->assign(elements, 0.0);
   for (auto* v : {&pv_xx, &pv_xy, &pv_yx, &pv_yy, &viscosity, &bulk_viscosity})

@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <vector>
 
+#include "mesh.hpp"
 #include "node_layout.hpp"
 
 namespace softshock {
@@ -18,6 +19,9 @@ struct ElementGeometry {
   std::vector<double> area0;  // m^2 (per metre of thickness: m^3/m)
   std::size_t size() const { return area0.size(); }
 };
+
+// From a finalized 2-D mesh (built for the baseline ISA: no contraction, the same bits anywhere).
+ElementGeometry build_tri3_geometry(const Mesh& mesh);
 
 // Element state carried from one force evaluation to the next.
 struct ElementState {

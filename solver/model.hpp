@@ -85,17 +85,22 @@ struct Problem {
   Element element;
   PressurePulse load;
   LoadPerturbation perturbation;
-  // Edges carrying the follower pressure (body on the left); empty = every boundary edge.
+  // Facets carrying the follower pressure: edges (2-D, body on the left) or faces (3-D,
+  // outward); empty = every boundary facet.
   std::vector<std::array<int32_t, 2>> loaded_edges;
-  bool load_all_boundary = true;  // false with empty loaded_edges = no load
-  // Per-node velocity constraints (sliding walls): empty = free.
-  std::vector<uint8_t> fixed_x, fixed_y;
+  std::vector<std::array<int32_t, 3>> loaded_faces;
+  bool load_all_boundary = true;  // false with no loaded facets = no load
+  // Per-node velocity constraints (sliding walls, bonded faces): empty = free.
+  std::vector<uint8_t> fixed_x, fixed_y, fixed_z;
   // Initial velocity per node, m/s: empty = at rest.
-  std::vector<double> initial_vx, initial_vy;
+  std::vector<double> initial_vx, initial_vy, initial_vz;
   // Polar frame for diagnostics: origin and R0 (normalises A-bar and modes). Negative R0 =
-  // derive: origin = area centroid, R0 = mean reference distance of the outer boundary nodes.
+  // derive: origin = area (volume) centroid, R0 = mean reference distance of the outer boundary
+  // nodes (3-D: of the lateral surface, about the z axis through the origin).
   std::array<double, 2> origin{0.0, 0.0};
   double reference_radius_m = -1.0;
+  double mid_plane_z_m = 0.0;            // 3-D: the plane of the rim diagnostics and the centre
+  bool rim_diagnostics = true;           // 3-D: false = no rim (a body not around the z axis)
   double center_region_radius_m = 5e-6;  // "centre" = elements with centroid this close
 };
 

@@ -25,4 +25,21 @@ struct alignas(16) NodeForce {
   }
 };
 
+// The same rows for tetrahedra: one 64-byte row (a cache line) per node, one 32-byte force.
+typedef double NodeLanes3 __attribute__((vector_size(64)));
+typedef double ForceLanes3 __attribute__((vector_size(32)));
+
+struct alignas(64) PackedNode3 {
+  NodeLanes3 lanes;  // x, y, z (m), mean stress (Pa), bulk modulus (Pa), unused x 3
+};
+
+// The internal force on a node, N.
+struct alignas(32) NodeForce3 {
+  ForceLanes3 lanes;  // x, y, z, unused
+  NodeForce3& operator+=(const NodeForce3& other) {
+    lanes += other.lanes;
+    return *this;
+  }
+};
+
 }  // namespace softshock

@@ -41,8 +41,11 @@ struct History {
   // the sample: a dip between samples shows here) and the element that set it.
   std::vector<double> min_dt;
   std::vector<double> min_dt_element;
-  // Fourier amplitudes of the rim radial displacement / R0: modes[k][m], m = 0..M.
+  // Fourier amplitudes of the rim radial displacement / R0: modes[k][m], m = 0..M (3-D: the rim
+  // at the mid-plane).
   std::vector<std::vector<double>> modes;
+  // 3-D only (empty in 2-D): the same over the whole lateral surface, averaged over the thickness.
+  std::vector<std::vector<double>> modes_z_mean;
 
   std::size_t size() const { return time.size(); }
   // Names and columns of the scalar series, in a fixed order (for writers and clients).
@@ -58,11 +61,11 @@ std::string series_units(std::string_view name);
 // Fields at one instant: nodal vectors and per-element scalars.
 struct FieldFrame {
   double time_s = 0;
-  int dimension = 2;                  // of the mesh: 2 (triangles) or 3 (tetrahedra)
-  std::vector<double> displacement;   // N x dimension, interleaved (ux, uy[, uz]), m
-  std::vector<double> velocity;       // N x dimension, m/s
-  std::vector<double> J;              // per element
-  std::vector<double> mean_stress;    // Pa, tension positive (includes viscous stress)
+  int dimension = 2;                 // of the mesh: 2 (triangles) or 3 (tetrahedra)
+  std::vector<double> displacement;  // N x dimension, interleaved (ux, uy[, uz]), m
+  std::vector<double> velocity;      // N x dimension, m/s
+  std::vector<double> J;             // per element
+  std::vector<double> mean_stress;   // Pa, tension positive (includes viscous stress)
   // Pa, sigma_rr and sigma_tt in the current polar frame (3-D: cylindrical, about the z axis
   // through the frame's origin)
   std::vector<double> radial_stress;

@@ -1,0 +1,57 @@
+// The linear tetrahedron (Tet4): its reference geometry, its state, and the per-element hot loop
+// (deformation gradient, full 3-D Tait + neo-Hookean stress, artificial and Kelvin-Voigt
+// viscosity, nodal forces, stable-step candidate, dissipation increment), the 3-D counterpart of
+// element_kernels.hpp's triangle loop, over the same KernelParams and KernelTotals.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <vector>
+
+#include "element_kernels.hpp"
+#include "mesh.hpp"
+#include "node_layout.hpp"
+
+namespace softshock {
+
+// Reference geometry of the tetrahedra (constant during a run).
+struct Tet4Geometry {
+  std::vector<int32_t> node0, node1, node2, node3;
+  // Dm^-1 with Dm = [X1 - X0, X2 - X0, X3 - X0], row-major: row a - 1 is the reference gradient
+  // of N_a (a = 1, 2, 3; grad N_0 = -their sum).
+  std::array<std::vector<double>, 9> dm_inv;
+  std::vector<double> volume0;  // m^3
+  // The regular tetrahedron's altitude at volume0 (continuum::regular_tetrahedron_altitude): the
+  // continuous artificial viscosity's length is this times J^(1/3).
+  std::vector<double> regular_altitude0;
+  std::size_t size() const { return volume0.size(); }
+};
+// From a finalized 3-D mesh. Throws std::invalid_argument for a mesh without tetrahedra.
+Tet4Geometry build_tet4_geometry(const Mesh& mesh);
+
+// Element state carried from one force evaluation to the next (as ElementState for triangles).
+struct Tet4State {
+  std::array<std::vector<double>, 9> f;  // F at the last evaluation (lags the viscosity)
+  std::array<std::vector<float>, 9> pv;  // viscous P at the last evaluation (dissipation only)
+  std::vector<float> viscosity, bulk_viscosity;  // its shear nu and bulk zeta, Pa s
+  void resize(std::size_t elements);
+  void reset_to_reference();  // F = I, P_v = 0
+};
+
+// nodes[i]'s position lanes = (x[i], y[i], z[i]), for i in [begin, end).
+void pack_positions(const double* x, const double* y, const double* z, std::size_t begin,
+                    std::size_t end, PackedNode3* nodes);
+// nodes[i]'s state lanes = (mean_stress[i], bulk_modulus[i]), for i in [begin, end).
+void pack_nodal_state(const double* mean_stress, const double* bulk_modulus, std::size_t begin,
+                      std::size_t end, PackedNode3* nodes);
+
+// Evaluates elements [begin, end): updates their state and adds their nodal forces (acting on the
+// nodes, = -f_int, N) to node_force, element by element in index order. KernelParams as for
+// triangles, with lengths: altitude_length > 0.5 the smallest altitude (3 V / largest face),
+// else the altitude of the regular tetrahedron of the current volume. KernelTotals in 3-D: the
+// stored energy in J, the aspect ratio the longest edge over the smallest altitude.
+void compute_tet4_forces(const Tet4Geometry& geometry, const PackedNode3* nodes,
+                         const KernelParams& params, std::size_t begin, std::size_t end,
+                         Tet4State& state, KernelTotals& totals, NodeForce3* node_force);
+
+}  // namespace softshock

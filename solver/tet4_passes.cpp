@@ -1,0 +1,293 @@
+#include "tet4_passes.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include "continuum.hpp"
+#include "vector_math.hpp"
+
+namespace softshock {
+
+namespace {
+constexpr std::size_t kBlock = 256;
+}  // namespace
+
+// ---- average nodal pressure -----------------------------------------------------------------
+
+std::vector<double> reference_nodal_volumes(const Tet4Geometry& g, std::size_t nodes) {
+  std::vector<double> v(nodes, 0.0);
+  for (std::size_t e = 0; e < g.size(); ++e) {
+    const double quarter = g.volume0[e] / 4.0;
+    v[g.node0[e]] += quarter, v[g.node1[e]] += quarter, v[g.node2[e]] += quarter,
+        v[g.node3[e]] += quarter;
+  }
+  return v;
+}
+
+__attribute__((target_clones("avx512f", "avx2", "default"))) void accumulate_nodal_volumes(
+    const Tet4Geometry& g, const PackedNode3* nodes, std::size_t begin, std::size_t end,
+    double* volume, double* j_element) {
+  const int32_t *n0 = g.node0.data(), *n1 = g.node1.data(), *n2 = g.node2.data(),
+                *n3 = g.node3.data();
+  const double* volume0 = g.volume0.data();
+  alignas(64) double edge[9][kBlock], quarter[kBlock];
+  for (std::size_t block = begin; block < end; block += kBlock) {
+    const std::size_t count = std::min(kBlock, end - block);
+    for (std::size_t k = 0; k < count; ++k) {
+      const std::size_t e = block + k;
+      const NodeLanes3 a = nodes[n0[e]].lanes;
+      const NodeLanes3 e1 = nodes[n1[e]].lanes - a, e2 = nodes[n2[e]].lanes - a,
+                       e3 = nodes[n3[e]].lanes - a;
+      for (int c = 0; c < 3; ++c) edge[c][k] = e1[c], edge[3 + c][k] = e2[c], edge[6 + c][k] = e3[c];
+    }
+#pragma GCC ivdep
+    for (std::size_t k = 0; k < count; ++k) {
+      // det [e1 e2 e3] = e1 . (e2 x e3)
+      const double cx = edge[4][k] * edge[8][k] - edge[5][k] * edge[7][k];
+      const double cy = edge[5][k] * edge[6][k] - edge[3][k] * edge[8][k];
+      const double cz = edge[3][k] * edge[7][k] - edge[4][k] * edge[6][k];
+      const double current = (edge[0][k] * cx + edge[1][k] * cy + edge[2][k] * cz) / 6.0;
+      j_element[block + k] = current / volume0[block + k];
+      quarter[k] = current / 4.0;
+    }
+    for (std::size_t k = 0; k < count; ++k) {
+      const std::size_t e = block + k;
+      volume[n0[e]] += quarter[k], volume[n1[e]] += quarter[k], volume[n2[e]] += quarter[k],
+          volume[n3[e]] += quarter[k];
+    }
+  }
+}
+
+namespace {
+template <bool kEnergy>
+inline __attribute__((always_inline)) void stabilization_blocks(
+    const Tet4Geometry& g, double beta_kappa, const double* nodal_j, const double* j_element,
+    std::size_t begin, std::size_t end, double* s_element, double* q_sum, StoredEnergySum energy) {
+  const int32_t *n0 = g.node0.data(), *n1 = g.node1.data(), *n2 = g.node2.data(),
+                *n3 = g.node3.data();
+  const double* volume0 = g.volume0.data();
+  alignas(64) double j_sum[kBlock], share[kBlock], out[kBlock];
+  for (std::size_t block = begin; block < end; block += kBlock) {
+    const std::size_t count = std::min(kBlock, end - block);
+    for (std::size_t k = 0; k < count; ++k) {
+      const std::size_t e = block + k;
+      j_sum[k] = nodal_j[n0[e]] + nodal_j[n1[e]] + nodal_j[n2[e]] + nodal_j[n3[e]];
+    }
+#pragma GCC ivdep
+    for (std::size_t k = 0; k < count; ++k) {
+      const std::size_t e = block + k;
+      const double rho = j_sum[k] / (4.0 * j_element[e]);  // Jbar_e / J_e
+      s_element[e] = continuum::stabilization_element_stress(beta_kappa, rho);
+      share[k] = volume0[e] * continuum::stabilization_nodal_share(beta_kappa, rho) / 4.0;
+      if constexpr (kEnergy)
+        out[k] = energy.weight * volume0[e] *
+                 continuum::stabilization_energy(beta_kappa, j_element[e], j_sum[k] / 4.0);
+    }
+    for (std::size_t k = 0; k < count; ++k) {
+      const std::size_t e = block + k;
+      q_sum[n0[e]] += share[k], q_sum[n1[e]] += share[k], q_sum[n2[e]] += share[k],
+          q_sum[n3[e]] += share[k];
+    }
+    if constexpr (kEnergy)
+      for (std::size_t k = 0; k < count; ++k) *energy.sum += out[k];
+  }
+}
+}  // namespace
+
+__attribute__((target_clones("avx512f", "avx2", "default"))) void accumulate_stabilization(
+    const Tet4Geometry& g, double beta_kappa, const double* nodal_j, const double* j_element,
+    std::size_t begin, std::size_t end, double* s_element, double* q_sum, StoredEnergySum energy) {
+  if (energy.sum)
+    stabilization_blocks<true>(g, beta_kappa, nodal_j, j_element, begin, end, s_element, q_sum,
+                               energy);
+  else
+    stabilization_blocks<false>(g, beta_kappa, nodal_j, j_element, begin, end, s_element, q_sum,
+                                energy);
+}
+
+__attribute__((target_clones("avx512f", "avx2", "default"))) void subtract_stabilization(
+    const double* __restrict reference_volume, const double* __restrict q_sum,
+    const double* __restrict bulk_modulus, std::size_t begin, std::size_t end,
+    double* __restrict mean_stress, PackedNode3* __restrict nodes) {
+  for (std::size_t i = begin; i < end; ++i) {
+    mean_stress[i] -= q_sum[i] / reference_volume[i];
+    nodes[i].lanes[3] = mean_stress[i], nodes[i].lanes[4] = bulk_modulus[i];
+  }
+}
+
+NodalPressureState nodal_pressure_state(const Tet4Geometry& g,
+                                        const std::vector<double>& reference_volume, double kappa,
+                                        double n, double element_weight, double beta,
+                                        ConstComponents3 x) {
+  const std::size_t nn = reference_volume.size(), ne = g.size();
+  std::vector<double> volume(nn, 0.0), nodal_j(nn), sm(nn), k(nn), j_element(ne), s(ne, 0.0),
+      q(nn, 0.0);
+  std::vector<PackedNode3> nodes(nn);
+  pack_positions(x[0], x[1], x[2], 0, nn, nodes.data());
+  accumulate_nodal_volumes(g, nodes.data(), 0, ne, volume.data(), j_element.data());
+  NodalPressureState out;
+  const double w_nodal = 1.0 - element_weight;
+  const StoredEnergySum energy{w_nodal, &out.stored_energy};
+  nodal_tait_state(kappa, n, reference_volume.data(), volume.data(), 0, nn, nodal_j.data(),
+                   sm.data(), k.data(), energy);
+  accumulate_stabilization(g, beta * kappa, nodal_j.data(), j_element.data(), 0, ne, s.data(),
+                           q.data(), beta > 0 ? energy : StoredEnergySum{});
+  subtract_stabilization(reference_volume.data(), q.data(), k.data(), 0, nn, sm.data(),
+                         nodes.data());
+  out.element_mean_stress.resize(ne);
+  for (std::size_t e = 0; e < ne; ++e) {
+    const double nodal_mean =
+        (sm[g.node0[e]] + sm[g.node1[e]] + sm[g.node2[e]] + sm[g.node3[e]]) / 4.0 + s[e];
+    out.element_mean_stress[e] =
+        w_nodal * nodal_mean +
+        element_weight * continuum::tait_mean_stress(kappa, n, std::pow(j_element[e], -n));
+  }
+  return out;
+}
+
+// ---- central differences -------------------------------------------------------------------
+
+__attribute__((target_clones("avx512f", "avx2", "default"))) void predict_nodes(
+    double dt, std::size_t begin, std::size_t end, Components3 x, Components3 v,
+    ConstComponents3 a, PackedNode3* nodes) {
+  for (int c = 0; c < 3; ++c) {
+    double* __restrict xc = x[c];
+    double* __restrict vc = v[c];
+    const double* __restrict ac = a[c];
+    for (std::size_t i = begin; i < end; ++i) {
+      xc[i] += dt * vc[i] + 0.5 * dt * dt * ac[i];
+      vc[i] += 0.5 * dt * ac[i];
+    }
+  }
+  for (std::size_t i = begin; i < end; ++i)
+    nodes[i].lanes[0] = x[0][i], nodes[i].lanes[1] = x[1][i], nodes[i].lanes[2] = x[2][i];
+}
+
+__attribute__((target_clones("avx512f", "avx2", "default"))) void correct_nodes(
+    double dt, std::size_t begin, std::size_t end, const NodeForce3* force, ConstComponents3 fext,
+    Flags3 free, const double* mass, Components3 a, Components3 v) {
+  for (int c = 0; c < 3; ++c) {
+    const double* __restrict fc = fext[c];
+    const uint8_t* __restrict free_c = free[c];
+    double* __restrict ac = a[c];
+    double* __restrict vc = v[c];
+    for (std::size_t i = begin; i < end; ++i) {
+      ac[i] = free_c[i] * (force[i].lanes[c] + fc[i]) / mass[i];
+      vc[i] += 0.5 * dt * ac[i];
+    }
+  }
+}
+
+__attribute__((target_clones("avx512f", "avx2", "default"))) void correct_nodes_blended(
+    double dt, std::size_t begin, std::size_t end, const NodeForce3* force, ConstComponents3 fext,
+    Flags3 free, const double* mass, Components3 a, Components3 fprev, Components3 p) {
+  for (int c = 0; c < 3; ++c) {
+    const double* __restrict fc = fext[c];
+    const uint8_t* __restrict free_c = free[c];
+    double* __restrict ac = a[c];
+    double* __restrict fprev_c = fprev[c];
+    double* __restrict pc = p[c];
+    for (std::size_t i = begin; i < end; ++i) {
+      const double f = free_c[i] * (force[i].lanes[c] + fc[i]);
+      ac[i] = f / mass[i];
+      pc[i] += 0.5 * dt * (fprev_c[i] + f);
+      fprev_c[i] = f;
+    }
+  }
+}
+
+__attribute__((target_clones("avx512f", "avx2", "default"))) void correct_mass_blend(
+    double dt, double alpha, std::size_t begin, std::size_t end, const NodeForce3* difference,
+    Flags3 free, const double* mass, Components3 a, Components3 v) {
+  for (int c = 0; c < 3; ++c) {
+    const uint8_t* __restrict free_c = free[c];
+    double* __restrict ac = a[c];
+    double* __restrict vc = v[c];
+    for (std::size_t i = begin; i < end; ++i) {
+      ac[i] -= alpha * free_c[i] * difference[i].lanes[c] / mass[i];
+      vc[i] += 0.5 * dt * ac[i];
+    }
+  }
+}
+
+std::vector<double> consistent_mass_weights(const Tet4Geometry& g, double density) {
+  std::vector<double> weight(g.size());
+  for (std::size_t e = 0; e < g.size(); ++e) weight[e] = density * g.volume0[e] / 20.0;
+  return weight;
+}
+
+void accumulate_consistent_mass_difference(const Tet4Geometry& g, const double* weight,
+                                           ConstComponents3 a, std::size_t begin,
+                                           std::size_t end, NodeForce3* difference) {
+  for (std::size_t e = begin; e < end; ++e) {
+    const int32_t n[4] = {g.node0[e], g.node1[e], g.node2[e], g.node3[e]};
+    ForceLanes3 corner[4];
+    for (int k = 0; k < 4; ++k) corner[k] = ForceLanes3{a[0][n[k]], a[1][n[k]], a[2][n[k]], 0.0};
+    const ForceLanes3 sum = corner[0] + corner[1] + corner[2] + corner[3];
+    const double w = weight[e];
+    // sum of the other three minus 3 a_i = sum - 4 a_i
+    for (int k = 0; k < 4; ++k) difference[n[k]].lanes += w * (sum - 4.0 * corner[k]);
+  }
+}
+
+void blended_momentum(const Tet4Geometry& geometry, const double* weight, double alpha,
+                      std::size_t nodes, const double* mass, Flags3 free, ConstComponents3 v,
+                      Components3 p) {
+  std::array<std::vector<double>, 3> y;
+  for (int c = 0; c < 3; ++c) y[c].assign(v[c], v[c] + nodes);
+  std::vector<NodeForce3> difference(nodes);
+  double size = 0;
+  for (std::size_t i = 0; i < nodes; ++i)
+    for (int c = 0; c < 3; ++c) {
+      p[c][i] = mass[i] * v[c][i];
+      size += std::fabs(p[c][i]);
+    }
+  for (int k = 1; k <= 400 && size > 0; ++k) {  // ratio <= 4/5: 400 terms reach any round-off
+    std::fill(difference.begin(), difference.end(), NodeForce3{});
+    accumulate_consistent_mass_difference(geometry, weight, {y[0].data(), y[1].data(), y[2].data()},
+                                          0, geometry.size(), difference.data());
+    double term = 0;
+    for (std::size_t i = 0; i < nodes; ++i)
+      for (int c = 0; c < 3; ++c) {
+        y[c][i] = alpha * free[c][i] * difference[i].lanes[c] / mass[i];
+        p[c][i] += mass[i] * y[c][i];
+        term += std::fabs(mass[i] * y[c][i]);
+      }
+    if (term <= 1e-17 * size) break;
+  }
+}
+
+StepBound volume_change_step(const Tet4Geometry& g, std::span<const int32_t> elements,
+                             ConstComponents3 v, ConstComponents3 a, double max_volume_change) {
+  StepBound bound{std::numeric_limits<double>::infinity(), -1};
+  for (const int32_t e : elements) {
+    const int32_t n[4] = {g.node0[e], g.node1[e], g.node2[e], g.node3[e]};
+    // div u = tr(grad u), grad u = [u_1 - u_0, u_2 - u_0, u_3 - u_0] Dm^-1: sum over components c
+    // and corners k of (u_k - u_0)_c Dm^-1[k - 1][c].
+    auto divergence = [&](ConstComponents3 u) {
+      double div = 0.0;
+      for (int k = 1; k <= 3; ++k)
+        for (int c = 0; c < 3; ++c) div += (u[c][n[k]] - u[c][n[0]]) * g.dm_inv[3 * (k - 1) + c][e];
+      return div;
+    };
+    const double p = std::fabs(divergence(v)), q = std::fabs(divergence(a));
+    const double root = std::sqrt(p * p + 2.0 * q * max_volume_change);
+    if (p + root > 0.0 && 2.0 * max_volume_change / (p + root) < bound.dt_s)
+      bound = {2.0 * max_volume_change / (p + root), static_cast<int64_t>(e)};
+  }
+  return bound;
+}
+
+std::vector<int32_t> elements_on_nodes(const Tet4Geometry& g, std::span<const int32_t> nodes,
+                                       std::size_t node_count) {
+  std::vector<uint8_t> marked(node_count, 0);
+  for (const int32_t i : nodes) marked[i] = 1;
+  std::vector<int32_t> out;
+  for (std::size_t e = 0; e < g.size(); ++e)
+    if (marked[g.node0[e]] || marked[g.node1[e]] || marked[g.node2[e]] || marked[g.node3[e]])
+      out.push_back(static_cast<int32_t>(e));
+  return out;
+}
+
+}  // namespace softshock
