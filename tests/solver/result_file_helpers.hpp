@@ -6,8 +6,12 @@
 #include <gtest/gtest.h>
 #include <hdf5.h>
 
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
+#include <fstream>
+#include <sstream>
 #include <string>
 #include <utility>
 #include <vector>
@@ -266,5 +270,56 @@ inline int64_t int_attr(hid_t obj, const char* name) {
   H5Aclose(a);
   return value;
 }
+
+// A text file's contents (the XDMF companion).
+inline std::string read_text(const std::string& path) {
+  std::ifstream in(path);
+  std::stringstream text;
+  text << in.rdbuf();
+  return text.str();
+}
+
+// The whole layout (list_objects) a writer of format_version 2 gives: /fields with `frames`
+// groups of the eight fields (node vectors N x 3), /modes, /timeseries, and `mesh`, the /mesh
+// entries of the file's dimension. Sorted, as the comparison sorts the file's list.
+inline std::vector<std::string> expected_layout(std::size_t n, std::size_t e, std::size_t frames,
+                                                std::size_t samples, std::size_t modes,
+                                                std::vector<std::string> mesh) {
+  const auto dims = [](std::vector<std::size_t> d) {
+    std::string s = " [";
+    for (std::size_t i = 0; i < d.size(); ++i) s += (i ? " x " : "") + std::to_string(d[i]);
+    return s + "]";
+  };
+  std::vector<std::string> want = {"fields", "mesh", "modes", "timeseries"};
+  for (std::size_t k = 0; k < frames; ++k) {
+    char group[64];
+    std::snprintf(group, sizeof group, "fields/frame_%05zu", k);
+    want.push_back(group);
+    for (const auto& name : kFieldNames) {
+      const bool nodal = name == "displacement" || name == "velocity";
+      want.push_back(std::string(group) + "/" + name + " float64" +
+                     (nodal ? dims({n, 3}) : dims({e})));
+    }
+  }
+  for (auto& m : mesh) want.push_back("mesh/" + m);
+  want.push_back("modes/amplitude float64" + dims({samples, samples ? modes + 1 : 0}));
+  want.push_back("modes/time float64" + dims({samples}));
+  for (const auto& [name, column] : History{}.columns()) {
+    want.push_back("timeseries/" + name + " float64" + dims({samples}));
+  }
+  std::sort(want.begin(), want.end());
+  return want;
+}
+
+inline std::vector<std::string> sorted_objects(hid_t file) {
+  std::vector<std::string> got = list_objects(file);
+  std::sort(got.begin(), got.end());
+  return got;
+}
+
+// The root attributes of every file of this version, in name order.
+inline const std::vector<std::string> kRootAttributes = {
+    "complete",       "dimension", "error", "format_version", "frame_count",
+    "solver_version", "spec",      "steps", "summary",        "wall_time_s"};
 
 }  // namespace softshock::testing
