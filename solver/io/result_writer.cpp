@@ -175,6 +175,14 @@ void write_double_attr(hid_t obj, const char* name, double value, const std::str
           path);
 }
 
+// A series' `units` attribute. series_units() gives the plane-strain (2-D) units, where the
+// energies are per metre of thickness; a 3-D body's energies are whole-body joules.
+std::string stored_series_units(const std::string& name, int dimension) {
+  std::string units = series_units(name);
+  if (dimension == 3 && units == "J/m") units = "J";
+  return units;
+}
+
 }  // namespace
 
 std::string link_result_files(const std::string& source_h5, const std::string& out_dir) {
@@ -456,7 +464,7 @@ void ResultWriter::finish(const History& history, const RunSummary& summary, boo
       const hid_t root = m.file.get();
       Hid ts = create_group(root, "timeseries", path, true);
       for (const auto& [name, column] : columns) {
-        const std::string units = series_units(name);
+        const std::string units = stored_series_units(name, m.dimension);
         write_doubles(ts.get(), name.c_str(), column->data(), vector_shape(column->size()),
                       units.c_str(), path);
       }

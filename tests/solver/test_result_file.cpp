@@ -499,6 +499,7 @@ TEST(ResultFile, TwoDimensionalLayoutIsUnchangedButForTheDimensionAttribute) {
   EXPECT_EQ(attr_type(f.id, "dimension"), std::make_pair(H5T_INTEGER, std::size_t{4}));
   EXPECT_EQ(int_attr(f.id, "dimension"), 2);
   EXPECT_EQ(int_attr(f.id, "format_version"), 2);
+  EXPECT_EQ(shape_of(f.id, "/timeseries/kinetic_energy").units, "J/m");  // plane strain
 }
 
 // Files written before 3-D results have no `dimension`: they read as 2-D, as before.

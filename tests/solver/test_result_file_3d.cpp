@@ -86,6 +86,12 @@ TEST(ResultFile3d, LayoutMatchesTheDocumentedContract) {
   const auto boundary = shape_of(f.id, "/mesh/boundary_faces");
   EXPECT_EQ(boundary.layout, H5D_CONTIGUOUS);
   EXPECT_FALSE(boundary.has_units);
+  // Energies are whole-body joules in 3-D (J/m, per metre of thickness, in 2-D).
+  for (const char* energy :
+       {"kinetic_energy", "elastic_energy", "dissipated_energy", "external_work"}) {
+    EXPECT_EQ(shape_of(f.id, std::string("/timeseries/") + energy).units, "J") << energy;
+  }
+  EXPECT_EQ(shape_of(f.id, "/timeseries/center_mean_stress").units, "Pa");
   for (const auto& name : kFieldNames) {
     const auto s = shape_of(f.id, "/fields/frame_00001/" + name);
     EXPECT_EQ(s.layout, H5D_CONTIGUOUS) << name;
