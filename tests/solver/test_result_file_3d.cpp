@@ -188,6 +188,24 @@ TEST(ResultFile3d, WriterRejectsMismatchedInputAndStaysUsable) {
   EXPECT_THROW(writer2.write_mesh(tets_with_four_nodes), std::invalid_argument);
 }
 
+// A mesh whose boundary faces were not found (no 3-D finalize yet) is written and read with an
+// empty 0 x 3 /mesh/boundary_faces.
+TEST(ResultFile3d, EmptyBoundaryFacesAreAllowed) {
+  ScratchDir dir;
+  Mesh mesh = tet_box(1.0, 1.0, 1.0, 2, 1, 1);
+  mesh.boundary_faces.clear();
+  write_result(dir.str(), mesh, {0.0}, make_history(1, 0));
+  {
+    H5File f(dir.str("result.h5"));
+    EXPECT_EQ(shape_of(f.id, "/mesh/boundary_faces").dims, (std::vector<hsize_t>{0, 3}));
+  }
+  ResultReader reader(dir.str("result.h5"));
+  const Mesh back = reader.mesh();
+  EXPECT_TRUE(back.boundary_faces.empty());
+  EXPECT_EQ(back.tetrahedra, mesh.tetrahedra);
+  expect_same_bits(reader.field(0, "displacement"), make_frame(mesh, 0.0, 0).displacement, "u");
+}
+
 // The reader names what is wrong with a 3-D file rather than hand out a Mesh that sends loops
 // out of bounds.
 TEST(ResultFile3d, ReaderChecksTheStoredMesh) {
