@@ -16,15 +16,17 @@
 
 namespace softshock::h5 {
 
-// 2: node vectors are N x 3 (z = 0), so ParaView's default XDMF reader offers Warp By Vector.
-// Version 1 files (N x 2) are still read.
+// 2: node vectors are N x 3 (z = 0 in 2-D), so ParaView's default XDMF reader offers Warp By
+// Vector. Version 1 files (N x 2) are still read. 3-D results (tetrahedra) are version 2 too:
+// they add datasets (/mesh/tetrahedra, /mesh/boundary_faces) and the root attribute `dimension`
+// rather than change a 2-D one, and a 2-D file stays as it was.
 inline constexpr int kFormatVersion = 2;
 inline constexpr std::size_t kVectorColumns = 3;
 inline constexpr const char* kH5Name = "result.h5";
 inline constexpr const char* kXdmfName = "result.xdmf";
 
-// The per-frame fields: dataset name, node-centred (N x 2 in memory, N x 3 on disk) or per
-// element (E), member, units.
+// The per-frame fields: dataset name, node-centred (N x dimension in memory, N x 3 on disk) or
+// per element (E), member, units.
 struct FieldSpec {
   const char* name;
   bool nodal;

@@ -53,7 +53,10 @@ struct ResultInfo {
   bool complete = false;
   std::string error, spec_json, summary_json, solver_version;
   std::vector<double> frame_times;  // s, one per /fields/frame_K
-  std::size_t nodes = 0, elements = 0;
+  // The mesh's: 2 (triangles) or 3 (tetrahedra); 2 for files written before 3-D results, which
+  // have no `dimension` attribute.
+  int dimension = 2;
+  std::size_t nodes = 0, elements = 0;  // elements: triangles in 2-D, tetrahedra in 3-D
 };
 
 class ResultReader {
@@ -64,7 +67,9 @@ class ResultReader {
   ResultReader& operator=(const ResultReader&) = delete;
 
   const ResultInfo& info() const;
-  Mesh mesh() const;  // nodes, triangles, boundary_nodes (boundary_edges rebuilt)
+  // 2-D: nodes, triangles, boundary_nodes (boundary_edges rebuilt by finalize_mesh). 3-D: x, y,
+  // z, tetrahedra and boundary_faces as stored (node indices checked, nothing rebuilt).
+  Mesh mesh() const;
   // Scalar series by name (e.g. "abar"); "time" is the shared time axis.
   std::vector<double> series(const std::string& name) const;
   std::vector<std::string> series_names() const;
@@ -80,12 +85,14 @@ class ResultReader {
     std::size_t first = 0, stride = 1, rows = 0, col_first = 0, col_count = 1;
   };
   std::vector<double> slice(const std::string& dataset, const Slice& s) const;
-  // A field of frame k: "displacement" and "velocity" are N x 2 interleaved (whatever the
-  // format_version: the stored z = 0 column of version 2 is dropped); "J",
-  // "mean_stress", "radial_stress", "hoop_stress", "von_mises" are per element.
+  // A field of frame k: "displacement" and "velocity" are N x dimension interleaved (2-D: N x 2
+  // whatever the format_version, the stored z = 0 column of version 2 dropped; 3-D: N x 3);
+  // "J", "mean_stress", "radial_stress", "hoop_stress", "von_mises", "aspect_ratio" are per
+  // element.
   std::vector<double> field(std::size_t frame, const std::string& name) const;
 
  private:
+  Mesh mesh_3d() const;
   struct Impl;
   std::unique_ptr<Impl> impl_;
 };

@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <array>
 #include <cerrno>
+#include <cmath>
 #include <cstdint>
 #include <cstdio>
 #include <cstring>
@@ -72,6 +73,12 @@ T read_scalar_attr(hid_t obj, const char* name, const std::string& path) {
   return value;
 }
 
+bool has_attr(hid_t obj, const char* name, const std::string& path) {
+  const htri_t exists = H5Aexists(obj, name);
+  if (exists < 0) fail(std::string("look up attribute ") + name, path);
+  return exists > 0;
+}
+
 Hid open_dataset(hid_t file, const std::string& name, const std::string& path) {
   // H5Lexists fails (rather than answering false) when an intermediate group is missing, so
   // test each level: the caller gets "no such dataset" either way.
@@ -118,6 +125,33 @@ std::vector<T> read_all(hid_t file, const std::string& name, hid_t mem_type,
   return values;
 }
 
+// A dataset that must be rows x `cols` (rank 2): its values, rows in `rows`.
+template <typename T>
+std::vector<T> read_matrix(hid_t file, const std::string& name, hid_t mem_type, std::size_t cols,
+                           const std::string& path, std::size_t& rows) {
+  std::vector<hsize_t> dims;
+  std::vector<T> values = read_all<T>(file, name, mem_type, path, &dims);
+  if (dims.size() != 2 || dims[1] != cols) {
+    throw std::runtime_error("HDF5: " + name + " is not a matrix of " + std::to_string(cols) +
+                             " columns (" + path + ")");
+  }
+  rows = static_cast<std::size_t>(dims[0]);
+  return values;
+}
+
+// Node indices of a 3-D mesh dataset lie in 0..nodes-1: a Mesh with others would send the
+// caller's loops out of bounds. (2-D meshes get this check from finalize_mesh.)
+void check_node_indices(const std::vector<int32_t>& indices, std::size_t nodes,
+                        const std::string& name, const std::string& path) {
+  for (std::size_t i = 0; i < indices.size(); ++i) {
+    if (indices[i] < 0 || static_cast<std::size_t>(indices[i]) >= nodes) {
+      throw std::runtime_error("HDF5: " + name + " entry " + std::to_string(i) + " is node " +
+                               std::to_string(indices[i]) + " of " + std::to_string(nodes) + " (" +
+                               path + ")");
+    }
+  }
+}
+
 }  // namespace
 
 // ResultReader
@@ -152,13 +186,23 @@ ResultReader::ResultReader(const std::string& h5_path) : impl_(std::make_unique<
     info.spec_json = read_string_attr(root, "spec", h5_path);
     info.summary_json = read_string_attr(root, "summary", h5_path);
     info.solver_version = read_string_attr(root, "solver_version", h5_path);
+    // Files written before 3-D results have no `dimension`: they are all 2-D.
+    const int64_t dimension = has_attr(root, "dimension", h5_path)
+                                  ? read_scalar_attr<int64_t>(root, "dimension", h5_path)
+                                  : 2;
+    if (dimension != 2 && dimension != 3) {
+      throw std::runtime_error("result file " + h5_path + " has dimension " +
+                               std::to_string(dimension) + ", expected 2 or 3");
+    }
+    info.dimension = static_cast<int>(dimension);
     {
       Hid ds = open_dataset(root, "/mesh/nodes", h5_path);
       info.nodes = dataset_dims(ds.get(), "/mesh/nodes", h5_path)[0];
     }
     {
-      Hid ds = open_dataset(root, "/mesh/triangles", h5_path);
-      info.elements = dataset_dims(ds.get(), "/mesh/triangles", h5_path)[0];
+      const char* elements = info.dimension == 3 ? "/mesh/tetrahedra" : "/mesh/triangles";
+      Hid ds = open_dataset(root, elements, h5_path);
+      info.elements = dataset_dims(ds.get(), elements, h5_path)[0];
     }
     // Frames are frame_00000 .. frame_{K-1}: count the links rather than trust frame_count.
     Hid fields = checked(H5Gopen2(root, "fields", H5P_DEFAULT), "open group /fields", h5_path);
@@ -187,6 +231,7 @@ const ResultInfo& ResultReader::info() const {
 }
 
 Mesh ResultReader::mesh() const {
+  if (impl_->info.dimension == 3) return mesh_3d();
   Mesh mesh;
   const std::string& path = impl_->path;
   {
@@ -219,6 +264,49 @@ Mesh ResultReader::mesh() const {
   std::vector<int32_t> stored_loop = std::move(mesh.boundary_nodes);
   finalize_mesh(mesh);
   mesh.boundary_nodes = std::move(stored_loop);
+  return mesh;
+}
+
+// The stored record as it is: finalize_mesh's 3-D half would re-orient and re-derive what the
+// writer stored from a mesh already finalized, and this reader must not depend on it. The checks
+// are those a caller's loops rely on: shapes, finite coordinates, node indices in range.
+Mesh ResultReader::mesh_3d() const {
+  Mesh mesh;
+  const std::string& path = impl_->path;
+  std::size_t n = 0, e = 0, faces = 0;
+  std::vector<double> xyz;
+  std::vector<int32_t> tets, boundary;
+  {
+    auto lock = lock_hdf5();
+    const hid_t f = impl_->file.get();
+    xyz = read_matrix<double>(f, "/mesh/nodes", H5T_NATIVE_DOUBLE, 3, path, n);
+    tets = read_matrix<int32_t>(f, "/mesh/tetrahedra", H5T_NATIVE_INT32, 4, path, e);
+    boundary = read_matrix<int32_t>(f, "/mesh/boundary_faces", H5T_NATIVE_INT32, 3, path, faces);
+  }
+  for (std::size_t i = 0; i < xyz.size(); ++i) {
+    if (!std::isfinite(xyz[i])) {
+      throw std::runtime_error("HDF5: /mesh/nodes has a non-finite coordinate at node " +
+                               std::to_string(i / 3) + " (" + path + ")");
+    }
+  }
+  check_node_indices(tets, n, "/mesh/tetrahedra", path);
+  check_node_indices(boundary, n, "/mesh/boundary_faces", path);
+  mesh.x.resize(n);
+  mesh.y.resize(n);
+  mesh.z.resize(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    mesh.x[i] = xyz[3 * i];
+    mesh.y[i] = xyz[3 * i + 1];
+    mesh.z[i] = xyz[3 * i + 2];
+  }
+  mesh.tetrahedra.resize(e);
+  for (std::size_t k = 0; k < e; ++k) {
+    mesh.tetrahedra[k] = {tets[4 * k], tets[4 * k + 1], tets[4 * k + 2], tets[4 * k + 3]};
+  }
+  mesh.boundary_faces.resize(faces);
+  for (std::size_t k = 0; k < faces; ++k) {
+    mesh.boundary_faces[k] = {boundary[3 * k], boundary[3 * k + 1], boundary[3 * k + 2]};
+  }
   return mesh;
 }
 
@@ -322,8 +410,14 @@ std::vector<double> ResultReader::field(std::size_t frame, const std::string& na
   std::vector<double> v =
       read_all<double>(impl_->file.get(), dataset, H5T_NATIVE_DOUBLE, impl_->path, &dims);
   if (!known->nodal) return v;
-  // Callers get (x, y) pairs from either version: N x 2 (version 1) or N x 3 (z dropped).
   const std::size_t cols = dims.size() == 2 ? static_cast<std::size_t>(dims[1]) : 0;
+  if (impl_->info.dimension == 3) {  // N x 3 on disk and in memory: the z column is data
+    if (cols != kVectorColumns) {
+      throw std::runtime_error("HDF5: " + dataset + " is not N x 3 (" + impl_->path + ")");
+    }
+    return v;
+  }
+  // 2-D callers get (x, y) pairs from either version: N x 2 (version 1) or N x 3 (z dropped).
   if (cols != 2 && cols != kVectorColumns) {
     throw std::runtime_error("HDF5: " + dataset + " is not N x 2 or N x 3 (" + impl_->path + ")");
   }

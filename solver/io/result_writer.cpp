@@ -25,8 +25,8 @@ namespace softshock {
 
 namespace detail {
 // xdmf.cpp (private to this module, hence no header).
-std::string xdmf_document(const std::string& h5_file, std::size_t nodes, std::size_t elements,
-                          const std::vector<std::string>& frame_groups,
+std::string xdmf_document(const std::string& h5_file, int dimension, std::size_t nodes,
+                          std::size_t elements, const std::vector<std::string>& frame_groups,
                           const std::vector<double>& frame_times,
                           const std::vector<std::pair<std::string, bool>>& attributes);
 }  // namespace detail
@@ -175,6 +175,14 @@ void write_double_attr(hid_t obj, const char* name, double value, const std::str
           path);
 }
 
+// A series' `units` attribute. series_units() gives the plane-strain (2-D) units, where the
+// energies are per metre of thickness; a 3-D body's energies are whole-body joules.
+std::string stored_series_units(const std::string& name, int dimension) {
+  std::string units = series_units(name);
+  if (dimension == 3 && units == "J/m") units = "J";
+  return units;
+}
+
 }  // namespace
 
 std::string link_result_files(const std::string& source_h5, const std::string& out_dir) {
@@ -204,11 +212,12 @@ std::string link_result_files(const std::string& source_h5, const std::string& o
 struct ResultWriter::Impl {
   fs::path dir, tmp_h5, final_h5, tmp_xdmf, final_xdmf;
   std::string tmp_name;  // tmp_h5 as a string, for messages
+  int dimension = 2;     // the mesh's: 2 (triangles) or 3 (tetrahedra)
   std::size_t nodes = 0, elements = 0;
   Hid file, fields;  // open from construction until finish() closes them
   std::vector<std::string> frame_groups;
   std::vector<double> frame_times;
-  std::vector<double> xyz;  // a node vector padded with z = 0, reused across frames
+  std::vector<double> xyz;  // 2-D: a node vector padded with z = 0, reused across frames
   bool finished = false;
   bool mesh_written = false;  // write_mesh(): finish() refuses a file without its mesh
   std::string broken;  // set when an operation failed half-way: the file is not to be trusted
@@ -236,6 +245,16 @@ void check_mesh(const Mesh& mesh) {
     throw std::invalid_argument("ResultWriter: mesh has " + std::to_string(mesh.x.size()) +
                                 " x but " + std::to_string(mesh.y.size()) + " y coordinates");
   }
+  if (mesh.dimension() == 3) {
+    if (mesh.z.size() != mesh.x.size()) {
+      throw std::invalid_argument("ResultWriter: 3-D mesh has " + std::to_string(mesh.x.size()) +
+                                  " x but " + std::to_string(mesh.z.size()) + " z coordinates");
+    }
+    // A file holds one kind of element: triangles beside tetrahedra would be dropped unseen.
+    if (!mesh.triangles.empty()) {
+      throw std::invalid_argument("ResultWriter: mesh has both tetrahedra and triangles");
+    }
+  }
 }
 }  // namespace
 
@@ -255,6 +274,7 @@ ResultWriter::ResultWriter(const std::string& out_dir, const Mesh& mesh,
   m.final_xdmf = m.dir / kXdmfName;
   m.tmp_xdmf = m.dir / (std::string(kXdmfName) + ".tmp");
   m.tmp_name = m.tmp_h5.string();
+  m.dimension = mesh.dimension();
   m.nodes = mesh.node_count();
   m.elements = mesh.element_count();
 
@@ -270,6 +290,8 @@ ResultWriter::ResultWriter(const std::string& out_dir, const Mesh& mesh,
       write_string_attr(root, "spec", spec_json, path);
       write_string_attr(root, "solver_version", solver_version, path);
       write_int_attr(root, "format_version", kFormatVersion, H5T_STD_I32LE, path);
+      // Readers pick the layout by it (absent in files written before 3-D: those are 2-D).
+      write_int_attr(root, "dimension", m.dimension, H5T_STD_I32LE, path);
       write_int_attr(root, "complete", 0, H5T_STD_I32LE, path);
       write_string_attr(root, "error", "", path);
       m.fields = create_group(root, "fields", path, false);
@@ -294,23 +316,37 @@ void ResultWriter::write_mesh(const Mesh& mesh) {
   m.check_usable("write_mesh");
   check_mesh(mesh);
   if (m.mesh_written) throw std::logic_error("ResultWriter::write_mesh: the mesh is written");
-  if (mesh.node_count() != m.nodes || mesh.element_count() != m.elements)
+  if (mesh.dimension() != m.dimension || mesh.node_count() != m.nodes ||
+      mesh.element_count() != m.elements)
     throw std::invalid_argument("ResultWriter::write_mesh: not the mesh the writer was made for");
   const std::string& path = m.tmp_name;
+  // Interleaved coordinates, built before taking the lock (other runs' files wait on it).
+  const std::size_t d = static_cast<std::size_t>(m.dimension);
+  std::vector<double> coordinates(d * m.nodes);
+  for (std::size_t i = 0; i < m.nodes; ++i) {
+    coordinates[d * i] = mesh.x[i];
+    coordinates[d * i + 1] = mesh.y[i];
+    if (d == 3) coordinates[d * i + 2] = mesh.z[i];
+  }
+  static_assert(sizeof(std::array<int32_t, 3>) == 3 * sizeof(int32_t));
+  static_assert(sizeof(std::array<int32_t, 4>) == 4 * sizeof(int32_t));
   auto lock = lock_hdf5();
   try {
     Hid g = create_group(m.file.get(), "mesh", path, false);
-    std::vector<double> xy(2 * m.nodes);
-    for (std::size_t i = 0; i < m.nodes; ++i) {
-      xy[2 * i] = mesh.x[i];
-      xy[2 * i + 1] = mesh.y[i];
+    write_doubles(g.get(), "nodes", coordinates.data(), matrix_shape(m.nodes, d), "m", path);
+    if (d == 3) {
+      // No outer loop in 3-D: the boundary is the outward faces (docs/results-format.md).
+      write_int32s(g.get(), "tetrahedra", reinterpret_cast<const int32_t*>(mesh.tetrahedra.data()),
+                   matrix_shape(m.elements, 4), path);
+      write_int32s(g.get(), "boundary_faces",
+                   reinterpret_cast<const int32_t*>(mesh.boundary_faces.data()),
+                   matrix_shape(mesh.boundary_faces.size(), 3), path);
+    } else {
+      write_int32s(g.get(), "triangles", reinterpret_cast<const int32_t*>(mesh.triangles.data()),
+                   matrix_shape(m.elements, 3), path);
+      write_int32s(g.get(), "boundary_nodes", mesh.boundary_nodes.data(),
+                   vector_shape(mesh.boundary_nodes.size()), path);
     }
-    write_doubles(g.get(), "nodes", xy.data(), matrix_shape(m.nodes, 2), "m", path);
-    static_assert(sizeof(std::array<int32_t, 3>) == 3 * sizeof(int32_t));
-    write_int32s(g.get(), "triangles", reinterpret_cast<const int32_t*>(mesh.triangles.data()),
-                 matrix_shape(m.elements, 3), path);
-    write_int32s(g.get(), "boundary_nodes", mesh.boundary_nodes.data(),
-                 vector_shape(mesh.boundary_nodes.size()), path);
   } catch (const std::exception& e) {
     m.broken = std::string("writing the mesh: ") + e.what();
     throw;
@@ -336,8 +372,14 @@ ResultWriter::~ResultWriter() {
 void ResultWriter::write_frame(const FieldFrame& frame) {
   Impl& m = *impl_;
   m.check_usable("write_frame");
+  if (frame.dimension != m.dimension) {
+    throw std::invalid_argument("ResultWriter::write_frame: frame of dimension " +
+                                std::to_string(frame.dimension) + " for a mesh of dimension " +
+                                std::to_string(m.dimension));
+  }
+  const std::size_t d = static_cast<std::size_t>(m.dimension);
   for (const FieldSpec& f : kFields) {
-    const std::size_t expected = f.nodal ? 2 * m.nodes : m.elements;
+    const std::size_t expected = f.nodal ? d * m.nodes : m.elements;
     const std::size_t got = (frame.*f.member).size();
     if (got != expected) {
       throw std::invalid_argument("ResultWriter::write_frame: field " + std::string(f.name) +
@@ -356,6 +398,11 @@ void ResultWriter::write_frame(const FieldFrame& frame) {
         const std::vector<double>& v = frame.*f.member;
         if (!f.nodal) {
           write_doubles(g.get(), f.name, v.data(), vector_shape(m.elements), f.units, path);
+          continue;
+        }
+        if (d == kVectorColumns) {  // 3-D: already N x 3
+          write_doubles(g.get(), f.name, v.data(), matrix_shape(m.nodes, kVectorColumns), f.units,
+                        path);
           continue;
         }
         m.xyz.assign(kVectorColumns * m.nodes, 0.0);
@@ -417,7 +464,7 @@ void ResultWriter::finish(const History& history, const RunSummary& summary, boo
       const hid_t root = m.file.get();
       Hid ts = create_group(root, "timeseries", path, true);
       for (const auto& [name, column] : columns) {
-        const std::string units = series_units(name);
+        const std::string units = stored_series_units(name, m.dimension);
         write_doubles(ts.get(), name.c_str(), column->data(), vector_shape(column->size()),
                       units.c_str(), path);
       }
@@ -447,7 +494,7 @@ void ResultWriter::finish(const History& history, const RunSummary& summary, boo
     fsync_path(m.tmp_h5, false);
     std::vector<std::pair<std::string, bool>> attributes;
     for (const FieldSpec& f : kFields) attributes.emplace_back(f.name, f.nodal);
-    write_file_synced(m.tmp_xdmf, detail::xdmf_document(kH5Name, m.nodes, m.elements,
+    write_file_synced(m.tmp_xdmf, detail::xdmf_document(kH5Name, m.dimension, m.nodes, m.elements,
                                                         m.frame_groups, m.frame_times, attributes));
     rename_file(m.tmp_h5, m.final_h5);
     rename_file(m.tmp_xdmf, m.final_xdmf);

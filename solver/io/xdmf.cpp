@@ -34,28 +34,38 @@ std::string data_item(const std::string& h5_file, const std::string& dataset,
 
 // Topology and geometry of one grid. Every grid references the same two datasets of /mesh:
 // the data are stored once, and the mesh is the reference configuration (displacement gives
-// the motion).
-std::string mesh_elements(const std::string& h5_file, std::size_t nodes, std::size_t elements,
-                          const std::string& indent) {
+// the motion). 2-D: triangles on (x, y) nodes; 3-D: tetrahedra on (x, y, z) nodes.
+std::string mesh_elements(const std::string& h5_file, int dimension, std::size_t nodes,
+                          std::size_t elements, const std::string& indent) {
+  const bool three_d = dimension == 3;
   const std::string e = std::to_string(elements), n = std::to_string(nodes);
-  return indent + "<Topology TopologyType=\"Triangle\" NumberOfElements=\"" + e + "\">\n" +
-         data_item(h5_file, "/mesh/triangles", e + " 3", true, indent + "  ") + indent +
-         "</Topology>\n" + indent + "<Geometry GeometryType=\"XY\">\n" +
-         data_item(h5_file, "/mesh/nodes", n + " 2", false, indent + "  ") + indent +
+  const std::string topology = three_d ? "Tetrahedron" : "Triangle";
+  const std::string connectivity = three_d ? "/mesh/tetrahedra" : "/mesh/triangles";
+  const std::string per_element = three_d ? " 4" : " 3";
+  const std::string geometry = three_d ? "XYZ" : "XY";
+  const std::string per_node = three_d ? " 3" : " 2";
+  return indent + "<Topology TopologyType=\"" + topology + "\" NumberOfElements=\"" + e + "\">\n" +
+         data_item(h5_file, connectivity, e + per_element, true, indent + "  ") + indent +
+         "</Topology>\n" + indent + "<Geometry GeometryType=\"" + geometry + "\">\n" +
+         data_item(h5_file, "/mesh/nodes", n + per_node, false, indent + "  ") + indent +
          "</Geometry>\n";
 }
 
 }  // namespace
 
 // h5_file: the HDF5 file name relative to the XDMF file (readers resolve it against the XDMF
-// file's folder, so the pair can be moved together). frame_groups[k] is the group path of frame
-// k (e.g. "/fields/frame_00000") and frame_times[k] its time. attributes: (dataset name,
-// node-centred); node-centred fields are N x 3 vectors (z = 0: ParaView's Xdmf3 readers and
-// Warp By Vector need three components), the others per-element scalars.
-std::string xdmf_document(const std::string& h5_file, std::size_t nodes, std::size_t elements,
-                          const std::vector<std::string>& frame_groups,
+// file's folder, so the pair can be moved together). dimension: the mesh's, 2 or 3.
+// frame_groups[k] is the group path of frame k (e.g. "/fields/frame_00000") and frame_times[k]
+// its time. attributes: (dataset name, node-centred); node-centred fields are N x 3 vectors (in
+// 2-D with z = 0: ParaView's Xdmf3 readers and Warp By Vector need three components), the
+// others per-element scalars.
+std::string xdmf_document(const std::string& h5_file, int dimension, std::size_t nodes,
+                          std::size_t elements, const std::vector<std::string>& frame_groups,
                           const std::vector<double>& frame_times,
                           const std::vector<std::pair<std::string, bool>>& attributes) {
+  if (dimension != 2 && dimension != 3) {
+    throw std::invalid_argument("XDMF: dimension " + std::to_string(dimension) + ", not 2 or 3");
+  }
   if (frame_groups.size() != frame_times.size()) {
     throw std::invalid_argument("XDMF: frame groups and frame times differ in number");
   }
@@ -67,7 +77,7 @@ std::string xdmf_document(const std::string& h5_file, std::size_t nodes, std::si
     // No frame was written (e.g. a run that failed before t = 0 was output): still describe the
     // reference mesh so the file opens.
     x += "    <Grid Name=\"mesh\" GridType=\"Uniform\">\n";
-    x += mesh_elements(h5_file, nodes, elements, "      ");
+    x += mesh_elements(h5_file, dimension, nodes, elements, "      ");
     x += "    </Grid>\n";
   } else {
     // One Uniform grid per frame inside one Temporal collection: ParaView animates over the
@@ -79,7 +89,7 @@ std::string xdmf_document(const std::string& h5_file, std::size_t nodes, std::si
       const std::string name = group.substr(group.find_last_of('/') + 1);
       x += "      <Grid Name=\"" + name + "\" GridType=\"Uniform\">\n";
       x += "        <Time Value=\"" + exact_double(frame_times[k]) + "\"/>\n";
-      x += mesh_elements(h5_file, nodes, elements, "        ");
+      x += mesh_elements(h5_file, dimension, nodes, elements, "        ");
       for (const auto& [field, nodal] : attributes) {
         x += "        <Attribute Name=\"" + field + "\" AttributeType=\"" +
              (nodal ? "Vector\" Center=\"Node\">\n" : "Scalar\" Center=\"Cell\">\n");

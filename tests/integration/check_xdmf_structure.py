@@ -3,13 +3,16 @@
 
 Usage: check_xdmf_structure.py RESULT.xdmf
 
-Holds when: the document is XDMF 3 with one Temporal collection (or, for a run without frames,
-one Uniform "mesh" grid); every grid has Triangle topology whose NumberOfElements and
-Dimensions ("E 3") match /mesh/triangles, and XY geometry matching /mesh/nodes ("N 2"); every
-Vector attribute is node-centred with 3 components ("N 3", the shape Warp By Vector accepts)
-and every Scalar attribute cell-centred ("E"); each DataItem's Dimensions equal the shape of
-the HDF5 dataset it names; frame times increase and equal the frames' HDF5 `time` attributes;
-displacement and velocity are present. Exits 0 when all hold, 1 otherwise (reasons on stderr).
+The mesh's dimension is result.h5's root attribute `dimension` (2 when absent: files written
+before 3-D results). Holds when: the document is XDMF 3 with one Temporal collection (or, for a
+run without frames, one Uniform "mesh" grid); every grid has, in 2-D, Triangle topology whose
+NumberOfElements and Dimensions ("E 3") match /mesh/triangles and XY geometry from /mesh/nodes
+("N 2"), in 3-D Tetrahedron topology matching /mesh/tetrahedra ("E 4") and XYZ geometry from
+/mesh/nodes ("N 3"); every Vector attribute is node-centred with 3 components ("N 3", the
+shape Warp By Vector accepts) and every Scalar attribute cell-centred ("E"); each DataItem's
+Dimensions equal the shape of the HDF5 dataset it names; frame times increase and equal the
+frames' HDF5 `time` attributes; displacement and velocity are present. Exits 0 when all hold,
+1 otherwise (reasons on stderr).
 
 Debian's interpreter (/usr/bin/python3): it needs python3-h5py.
 """
@@ -21,6 +24,9 @@ import xml.etree.ElementTree as ET
 import h5py
 
 VECTORS = ("displacement", "velocity")
+# By dimension: topology type, its dataset and nodes per element; geometry type and columns.
+MESH = {2: ("Triangle", "/mesh/triangles", 3, "XY", 2),
+        3: ("Tetrahedron", "/mesh/tetrahedra", 4, "XYZ", 3)}
 
 
 def dims_of(item):
@@ -45,23 +51,29 @@ def check_item(item, h5, where, problems):
     return dataset
 
 
-def check_grid(grid, h5, nodes, elements, problems):
+def check_grid(grid, h5, dimension, nodes, elements, problems):
     name = grid.get("Name")
+    topology, connectivity, corners, geometry, columns = MESH[dimension]
     topo = grid.find("Topology")
-    if topo is None or topo.get("TopologyType") != "Triangle":
-        problems.append(f"grid {name}: topology is not Triangle")
+    if topo is None or topo.get("TopologyType") != topology:
+        problems.append(f"grid {name}: topology is not {topology}")
     else:
         if topo.get("NumberOfElements") != str(elements):
             problems.append(f"grid {name}: NumberOfElements {topo.get('NumberOfElements')}")
-        if check_item(topo.find("DataItem"), h5, f"grid {name} topology", problems):
-            if dims_of(topo.find("DataItem")) != (elements, 3):
-                problems.append(f"grid {name}: topology is not E x 3")
+        dataset = check_item(topo.find("DataItem"), h5, f"grid {name} topology", problems)
+        if dataset and dataset != connectivity:
+            problems.append(f"grid {name}: topology from {dataset}, expected {connectivity}")
+        elif dataset and dims_of(topo.find("DataItem")) != (elements, corners):
+            problems.append(f"grid {name}: topology is not E x {corners}")
     geom = grid.find("Geometry")
-    if geom is None or geom.get("GeometryType") != "XY":
-        problems.append(f"grid {name}: geometry is not XY")
-    elif check_item(geom.find("DataItem"), h5, f"grid {name} geometry", problems):
-        if dims_of(geom.find("DataItem")) != (nodes, 2):
-            problems.append(f"grid {name}: geometry is not N x 2")
+    if geom is None or geom.get("GeometryType") != geometry:
+        problems.append(f"grid {name}: geometry is not {geometry}")
+    else:
+        dataset = check_item(geom.find("DataItem"), h5, f"grid {name} geometry", problems)
+        if dataset and dataset != "/mesh/nodes":
+            problems.append(f"grid {name}: geometry from {dataset}, expected /mesh/nodes")
+        elif dataset and dims_of(geom.find("DataItem")) != (nodes, columns):
+            problems.append(f"grid {name}: geometry is not N x {columns}")
     seen = set()
     for attr in grid.findall("Attribute"):
         aname, kind, center = attr.get("Name"), attr.get("AttributeType"), attr.get("Center")
@@ -87,7 +99,11 @@ def check(path):
         return [f"root is <{root.tag} Version={root.get('Version')!r}>, expected Xdmf 3.0"]
     h5_path = os.path.join(os.path.dirname(os.path.abspath(path)), "result.h5")
     with h5py.File(h5_path, "r") as h5:
-        nodes, elements = h5["mesh/nodes"].shape[0], h5["mesh/triangles"].shape[0]
+        dimension = int(h5.attrs.get("dimension", 2))
+        if dimension not in MESH:
+            return [f"result.h5 has dimension {dimension}, expected 2 or 3"]
+        nodes = h5["mesh/nodes"].shape[0]
+        elements = h5[MESH[dimension][1]].shape[0]
         top = root.findall("Domain/Grid")
         if len(top) != 1:
             return [f"{len(top)} top-level grids, expected 1"]
@@ -95,7 +111,7 @@ def check(path):
         if not frames:
             if top[0].get("GridType") != "Uniform":
                 problems.append("a run without frames must be one Uniform grid")
-            check_grid(top[0], h5, nodes, elements, problems)
+            check_grid(top[0], h5, dimension, nodes, elements, problems)
             return problems
         if top[0].get("GridType") != "Collection" or top[0].get("CollectionType") != "Temporal":
             return ["the top-level grid is not a Temporal collection"]
@@ -110,7 +126,7 @@ def check(path):
             if group is not None and times[-1] != group.attrs["time"]:
                 problems.append(f"grid {grid.get('Name')}: Time {times[-1]!r} != HDF5 time "
                                 f"{group.attrs['time']!r}")
-            missing = set(VECTORS) - check_grid(grid, h5, nodes, elements, problems)
+            missing = set(VECTORS) - check_grid(grid, h5, dimension, nodes, elements, problems)
             if missing:
                 problems.append(f"grid {grid.get('Name')}: no attribute {sorted(missing)}")
         if any(b <= a for a, b in zip(times, times[1:])):

@@ -5,12 +5,16 @@ Run with pvbatch (scripts/test-paraview does, under xvfb-run):
 
 Uses the reader ParaView picks by itself for .xdmf, applies Warp By Vector on `displacement`
 (scale 1), colours by the cell array `mean_stress`, steps through every time and writes
-OUT_DIR/step_KKK.png. Checks on the way: the default reader is an Xdmf3 reader, `displacement`
-has 3 components, Warp By Vector preselects it, and at the last step the warped points equal
-reference + displacement. Exits 1 with the reason on a failed check.
+OUT_DIR/step_KKK.png. 2-D results (Triangle topology) are viewed in 2-D, 3-D results
+(Tetrahedron topology) from an oblique 3-D camera. Checks on the way: the default reader is an
+Xdmf3 reader, it gives as many points and cells as the XDMF file declares and every cell is a
+VTK triangle (2-D) or tetrahedron (3-D), `displacement` has 3 components, Warp By Vector
+preselects it, and at the last step the warped points equal reference + displacement. Exits 1
+with the reason on a failed check.
 """
 import os
 import sys
+import xml.etree.ElementTree as ET
 
 from paraview import servermanager
 from paraview.simple import (ColorBy, GetActiveViewOrCreate, GetAnimationScene, OpenDataFile,
@@ -30,8 +34,27 @@ def first_block(data):
     return data
 
 
+# VTK cell type (vtkCellType.h) of each XDMF topology softshock writes.
+VTK_CELL = {"Triangle": 5, "Tetrahedron": 10}
+
+
+def declared_mesh(xdmf):
+    """(topology type, elements, nodes) of the first grid, as the XDMF file declares them."""
+    root = ET.parse(xdmf).getroot()
+    topo, geom = root.find(".//Topology"), root.find(".//Geometry/DataItem")
+    if topo is None or geom is None:
+        fail(f"{xdmf} has no Topology or Geometry")
+    return (topo.get("TopologyType"), int(topo.get("NumberOfElements")),
+            int(geom.get("Dimensions").split()[0]))
+
+
 def main(xdmf, out_dir):
     os.makedirs(out_dir, exist_ok=True)
+    topology, elements, nodes = declared_mesh(xdmf)
+    if topology not in VTK_CELL:
+        fail(f"unexpected TopologyType {topology!r}")
+    three_d = topology == "Tetrahedron"
+    print(f"render_result: {topology} mesh, {elements} cells, {nodes} points")
     reader = OpenDataFile(xdmf)
     reader_name = reader.GetXMLName()
     print(f"render_result: default reader {reader_name}")
@@ -45,6 +68,13 @@ def main(xdmf, out_dir):
     info = reader.PointData.GetArray("displacement")
     if info is None or info.GetNumberOfComponents() != 3:
         fail("displacement is missing or not a 3-component point array")
+    grid = first_block(servermanager.Fetch(reader))
+    if grid is None or grid.GetNumberOfPoints() != nodes or grid.GetNumberOfCells() != elements:
+        fail(f"the reader gave {grid and grid.GetNumberOfPoints()} points and "
+             f"{grid and grid.GetNumberOfCells()} cells, the file declares {nodes} and {elements}")
+    cell_types = {grid.GetCellType(i) for i in range(grid.GetNumberOfCells())}
+    if cell_types != {VTK_CELL[topology]}:
+        fail(f"VTK cell types {sorted(cell_types)}, expected {{{VTK_CELL[topology]}}} ({topology})")
 
     warp = WarpByVector(Input=reader)
     if list(warp.Vectors) != ["POINTS", "displacement"]:
@@ -56,7 +86,18 @@ def main(xdmf, out_dir):
     display = Show(warp, view)
     ColorBy(display, ("CELLS", "mean_stress"))
     display.SetScalarBarVisibility(view, True)
-    view.InteractionMode = "2D"
+    if three_d:
+        # Oblique, z up, so the sides and the top of the body are in view.
+        x0, x1, y0, y1, z0, z1 = reader.GetDataInformation().GetBounds()
+        centre = [(x0 + x1) / 2, (y0 + y1) / 2, (z0 + z1) / 2]
+        size = max(x1 - x0, y1 - y0, z1 - z0)
+        view.InteractionMode = "3D"
+        view.CameraFocalPoint = centre
+        view.CameraPosition = [centre[0] + 1.6 * size, centre[1] - 2.2 * size,
+                               centre[2] + 1.4 * size]
+        view.CameraViewUp = [0, 0, 1]
+    else:
+        view.InteractionMode = "2D"
     view.ResetCamera()
     scene = GetAnimationScene()
     scene.UpdateAnimationUsingDataTimeSteps()

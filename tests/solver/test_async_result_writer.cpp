@@ -19,6 +19,7 @@
 
 #include "scratch_dir.hpp"
 #include "solver/io/async_result_writer.hpp"
+#include "tet_box.hpp"
 
 namespace softshock {
 namespace {
@@ -39,8 +40,9 @@ Mesh small_mesh() {
 FieldFrame make_frame(const Mesh& mesh, double time_s) {
   FieldFrame f;
   f.time_s = time_s;
+  f.dimension = mesh.dimension();
   const std::size_t n = mesh.node_count(), e = mesh.element_count();
-  for (std::size_t i = 0; i < 2 * n; ++i) {
+  for (std::size_t i = 0; i < static_cast<std::size_t>(f.dimension) * n; ++i) {
     f.displacement.push_back(time_s * 1e9 + static_cast<double>(i));
     f.velocity.push_back(-static_cast<double>(i) / 3.0);
   }
@@ -184,6 +186,31 @@ TEST(AsyncResultWriter, WritesFramesInOrderAndCompletesOnlyOnFinish) {
   }
   EXPECT_EQ(reader.series("time").size(), 5u);
   EXPECT_FALSE(fs::exists(dir.str("out/result.h5.tmp")));
+}
+
+// A 3-D run through the writer thread: the tetrahedral mesh (written from the thread's copy) and
+// N x 3 node vectors come back as they went in.
+TEST(AsyncResultWriter, WritesA3dResult) {
+  ScratchDir dir;
+  const Mesh mesh = testing::tet_box(1.0, 0.5, 0.25, 4, 2, 2);
+  {
+    AsyncResultWriter writer(dir.str("out"), mesh, "{}", "test", 2);
+    for (int k = 0; k < 5; ++k) writer.write_frame(make_frame(mesh, 1e-9 * k));
+    writer.finish(make_history(3), make_summary(mesh), true, "");
+  }
+  ResultReader reader(dir.str("out/result.h5"));
+  EXPECT_EQ(reader.info().dimension, 3);
+  const Mesh back = reader.mesh();
+  EXPECT_EQ(back.z, mesh.z);
+  EXPECT_EQ(back.tetrahedra, mesh.tetrahedra);
+  EXPECT_EQ(back.boundary_faces, mesh.boundary_faces);
+  ASSERT_EQ(reader.info().frame_times.size(), 5u);
+  for (std::size_t k = 0; k < 5; ++k) {
+    const FieldFrame want = make_frame(mesh, 1e-9 * static_cast<double>(k));
+    EXPECT_EQ(reader.field(k, "displacement"), want.displacement);
+    EXPECT_EQ(reader.field(k, "velocity"), want.velocity);
+    EXPECT_EQ(reader.field(k, "von_mises"), want.von_mises);
+  }
 }
 
 // Spares (RunControl::spare_frame): only frames already written come back, at most two, and
