@@ -43,7 +43,7 @@ Diagnostics3::Diagnostics3(const Problem& problem, const Tet4Geometry& geometry,
   // The axis: the problem's origin, else the volume centroid's (x, y).
   const auto centroid = tet_mesh_centroid(mesh);
   origin_ = problem.reference_radius_m > 0 ? problem.origin
-                                            : std::array<double, 2>{centroid[0], centroid[1]};
+                                           : std::array<double, 2>{centroid[0], centroid[1]};
   z_mid_ = problem.mid_plane_z_m;
 
   // The lateral surface: boundary faces whose outward normal is mostly radial; each node's share
@@ -87,8 +87,8 @@ Diagnostics3::Diagnostics3(const Problem& problem, const Tet4Geometry& geometry,
   for (std::size_t k = 0; k < nr; ++k) {
     rim_nodes_.push_back(rim[k].second);
     theta[k] = rim[k].first;
-    rim_ref_radius_.push_back(std::hypot(mesh.x[rim[k].second] - origin_[0],
-                                         mesh.y[rim[k].second] - origin_[1]));
+    rim_ref_radius_.push_back(
+        std::hypot(mesh.x[rim[k].second] - origin_[0], mesh.y[rim[k].second] - origin_[1]));
   }
   rim_weight_.resize(nr);
   for (std::size_t k = 0; k < nr; ++k) {
@@ -120,9 +120,9 @@ Diagnostics3::Diagnostics3(const Problem& problem, const Tet4Geometry& geometry,
     const auto& t = mesh.tetrahedra[e];
     double c[3] = {0, 0, 0};
     for (int32_t i : t) c[0] += mesh.x[i] / 4.0, c[1] += mesh.y[i] / 4.0, c[2] += mesh.z[i] / 4.0;
-    const double r = std::sqrt((c[0] - origin_[0]) * (c[0] - origin_[0]) +
-                               (c[1] - origin_[1]) * (c[1] - origin_[1]) +
-                               (c[2] - z_mid_) * (c[2] - z_mid_));
+    const double r =
+        std::sqrt((c[0] - origin_[0]) * (c[0] - origin_[0]) +
+                  (c[1] - origin_[1]) * (c[1] - origin_[1]) + (c[2] - z_mid_) * (c[2] - z_mid_));
     if (r <= rc) center_elements_.push_back(static_cast<int32_t>(e));
     if (r < nearest) nearest = r, nearest_element = static_cast<int32_t>(e);
     if (mid_rim[t[0]] || mid_rim[t[1]] || mid_rim[t[2]] || mid_rim[t[3]])
@@ -250,13 +250,12 @@ void Diagnostics3::sample(const NodalView3& nodes, const Tet4State& s, const Ker
   std::vector<double> ul(lateral_nodes_.size());
   for (std::size_t k = 0; k < lateral_nodes_.size(); ++k) {
     const int32_t i = lateral_nodes_[k];
-    ul[k] = std::hypot(nodes.x[0][i] - origin_[0], nodes.x[1][i] - origin_[1]) -
-            lateral_ref_radius_[k];
+    ul[k] =
+        std::hypot(nodes.x[0][i] - origin_[0], nodes.x[1][i] - origin_[1]) - lateral_ref_radius_[k];
   }
   std::vector<double> amplitude_z =
-      lateral_nodes_.empty()
-          ? std::vector<double>(static_cast<std::size_t>(modes_) + 1, 0.0)
-          : amplitudes(lateral_weight_, ul, lateral_cos_, lateral_sin_, nullptr);
+      lateral_nodes_.empty() ? std::vector<double>(static_cast<std::size_t>(modes_) + 1, 0.0)
+                             : amplitudes(lateral_weight_, ul, lateral_cos_, lateral_sin_, nullptr);
 
   double center_volume = 0, center_stress = 0;
   for (int32_t e : center_elements_) {
@@ -268,7 +267,8 @@ void Diagnostics3::sample(const NodalView3& nodes, const Tet4State& s, const Ker
   for (int32_t e : rim_elements_) {
     const ElementStress3 st = element_stress(nodes, s, kernel, e);
     double cx = -origin_[0], cy = -origin_[1];
-    for (int32_t i : {geometry_.node0[e], geometry_.node1[e], geometry_.node2[e], geometry_.node3[e]})
+    for (int32_t i :
+         {geometry_.node0[e], geometry_.node1[e], geometry_.node2[e], geometry_.node3[e]})
       cx += nodes.x[0][i] / 4.0, cy += nodes.x[1][i] / 4.0;
     const double r = std::sqrt(cx * cx + cy * cy);
     const double tx = r > 0 ? -cy / r : 0, ty = r > 0 ? cx / r : 1;

@@ -58,7 +58,8 @@ class Diagnostics3 {
   // Fourier amplitudes / R0 of u over nodes with weights w (sum 2 pi) at the angles' tables.
   std::vector<double> amplitudes(const std::vector<double>& weight, const std::vector<double>& u,
                                  const std::vector<double>& cos_table,
-                                 const std::vector<double>& sin_table, std::vector<double>* ur_filtered) const;
+                                 const std::vector<double>& sin_table,
+                                 std::vector<double>* ur_filtered) const;
 
   const Problem& problem_;
   const Tet4Geometry& geometry_;

@@ -75,16 +75,15 @@ struct Tri3 {
   }
   static void correct_blended(double dt, std::size_t n0, std::size_t n1, const Force* force,
                               NodalArrays<2>& s) {
-    correct_nodes_blended(dt, n0, n1, force, s.fext[0].data(), s.fext[1].data(),
-                          s.free[0].data(), s.free[1].data(), s.mass.data(), s.a[0].data(),
-                          s.a[1].data(), s.fprev[0].data(), s.fprev[1].data(), s.p[0].data(),
-                          s.p[1].data());
+    correct_nodes_blended(dt, n0, n1, force, s.fext[0].data(), s.fext[1].data(), s.free[0].data(),
+                          s.free[1].data(), s.mass.data(), s.a[0].data(), s.a[1].data(),
+                          s.fprev[0].data(), s.fprev[1].data(), s.p[0].data(), s.p[1].data());
   }
   static void correct_mass_blend(double dt, double alpha, std::size_t n0, std::size_t n1,
                                  const Force* difference, NodalArrays<2>& s) {
-    softshock::correct_mass_blend(dt, alpha, n0, n1, difference, s.free[0].data(),
-                                  s.free[1].data(), s.mass.data(), s.a[0].data(), s.a[1].data(),
-                                  s.v[0].data(), s.v[1].data());
+    softshock::correct_mass_blend(dt, alpha, n0, n1, difference, s.free[0].data(), s.free[1].data(),
+                                  s.mass.data(), s.a[0].data(), s.a[1].data(), s.v[0].data(),
+                                  s.v[1].data());
   }
   static void pack_nodal_state(const double* sm, const double* k, std::size_t n0, std::size_t n1,
                                Row* rows) {
@@ -126,8 +125,8 @@ struct Tri3 {
   }
   static StepBound volume_change_step(const Geometry& g, std::span<const int32_t> elements,
                                       const NodalArrays<2>& s, double max_volume_change) {
-    return softshock::volume_change_step(g, elements, s.v[0].data(), s.v[1].data(),
-                                         s.a[0].data(), s.a[1].data(), max_volume_change);
+    return softshock::volume_change_step(g, elements, s.v[0].data(), s.v[1].data(), s.a[0].data(),
+                                         s.a[1].data(), max_volume_change);
   }
   static std::vector<int32_t> elements_on_nodes(const Geometry& g, std::span<const int32_t> nodes,
                                                 std::size_t node_count) {
@@ -135,8 +134,8 @@ struct Tri3 {
   }
   // The nodal-pressure passes at once for the current positions (a sample's stored energy).
   static NodalPressureState nodal_pressure_state(const Geometry& g,
-                                                 const std::vector<double>& reference,
-                                                 double kappa, double n, double w, double beta,
+                                                 const std::vector<double>& reference, double kappa,
+                                                 double n, double w, double beta,
                                                  const NodalArrays<2>& s) {
     return softshock::nodal_pressure_state(g, reference, kappa, n, w, beta, s.x[0].data(),
                                            s.x[1].data());
@@ -153,8 +152,14 @@ struct Tri3 {
 
   // ---- views for the diagnostics
   static NodalView view(const NodalArrays<2>& s, bool blended) {
-    return {s.x[0].data(), s.x[1].data(), s.v[0].data(), s.v[1].data(), s.a[0].data(),
-            s.a[1].data(), s.mass.data(), blended ? s.p[0].data() : nullptr,
+    return {s.x[0].data(),
+            s.x[1].data(),
+            s.v[0].data(),
+            s.v[1].data(),
+            s.a[0].data(),
+            s.a[1].data(),
+            s.mass.data(),
+            blended ? s.p[0].data() : nullptr,
             blended ? s.p[1].data() : nullptr};
   }
 };
@@ -179,7 +184,9 @@ struct Tet4 {
   }
   static double mass_blend_step_factor(double alpha) { return tet4_mass_blend_step_factor(alpha); }
 
-  static Components3 components(NodalVector<3>& v) { return {v[0].data(), v[1].data(), v[2].data()}; }
+  static Components3 components(NodalVector<3>& v) {
+    return {v[0].data(), v[1].data(), v[2].data()};
+  }
   static ConstComponents3 components(const NodalVector<3>& v) {
     return {v[0].data(), v[1].data(), v[2].data()};
   }
@@ -254,8 +261,8 @@ struct Tet4 {
     return softshock::elements_on_nodes(g, nodes, node_count);
   }
   static NodalPressureState nodal_pressure_state(const Geometry& g,
-                                                 const std::vector<double>& reference,
-                                                 double kappa, double n, double w, double beta,
+                                                 const std::vector<double>& reference, double kappa,
+                                                 double n, double w, double beta,
                                                  const NodalArrays<3>& s) {
     return softshock::nodal_pressure_state(g, reference, kappa, n, w, beta, components(s.x));
   }

@@ -94,7 +94,8 @@ ExplicitStep<Element>::ExplicitStep(const Problem& problem, const SolverOptions&
 
   // The follower pressure: loaded facets and the nodes they touch.
   loaded_facets_ = loaded_facets(problem, static_cast<const Element*>(nullptr));
-  for (const auto& f : loaded_facets_) loaded_nodes_.insert(loaded_nodes_.end(), f.begin(), f.end());
+  for (const auto& f : loaded_facets_)
+    loaded_nodes_.insert(loaded_nodes_.end(), f.begin(), f.end());
   std::sort(loaded_nodes_.begin(), loaded_nodes_.end());
   loaded_nodes_.erase(std::unique(loaded_nodes_.begin(), loaded_nodes_.end()), loaded_nodes_.end());
   // Seeded perturbation: each loaded facet's pressure times 1 + amplitude cos(mode theta), theta
@@ -210,8 +211,8 @@ template <class Element>
 void ExplicitStep<Element>::nodal_state(int tid) {  // pass 2: J, mean stress, bulk modulus
   const auto [n0, n1] = node_range(tid);
   if (threads_ > 1) sum_threads(thread_measure_, n0, n1, nodal_measure_.data());
-  nodal_tait_state(params_.kappa, params_.tait_n, nodal_measure0_.data(), nodal_measure_.data(),
-                   n0, n1, nodal_j_.data(), nodal_sm_.data(), nodal_k_.data(), energy_sum(tid));
+  nodal_tait_state(params_.kappa, params_.tait_n, nodal_measure0_.data(), nodal_measure_.data(), n0,
+                   n1, nodal_j_.data(), nodal_sm_.data(), nodal_k_.data(), energy_sum(tid));
   if (beta_kappa_ <= 0)
     Element::pack_nodal_state(nodal_sm_.data(), nodal_k_.data(), n0, n1, rows_.data());
 }
@@ -229,8 +230,8 @@ template <class Element>
 void ExplicitStep<Element>::stabilized_state(int tid) {  // pass 4: less the patch mean of s
   const auto [n0, n1] = node_range(tid);
   if (threads_ > 1) sum_threads(thread_q_, n0, n1, nodal_q_.data());
-  Element::subtract_stabilization(nodal_measure0_.data(), nodal_q_.data(), nodal_k_.data(), n0,
-                                  n1, nodal_sm_.data(), rows_.data());
+  Element::subtract_stabilization(nodal_measure0_.data(), nodal_q_.data(), nodal_k_.data(), n0, n1,
+                                  nodal_sm_.data(), rows_.data());
 }
 
 template <class Element>
@@ -379,8 +380,7 @@ void ExplicitStep<Element>::sample_sums(KernelTotals& totals) const {
   sums_only.sample = true, sums_only.dt = 0.0;
   KernelTotals sums;
   std::vector<Force> unused(nn_);
-  Element::element_forces(geometry_, rows_.data(), sums_only, 0, ne_, scratch, sums,
-                          unused.data());
+  Element::element_forces(geometry_, rows_.data(), sums_only, 0, ne_, scratch, sums, unused.data());
   totals.element_energy = sums.element_energy;
   totals.max_aspect_ratio = sums.max_aspect_ratio;
   if (nodal_)
@@ -395,7 +395,8 @@ template <class Element>
 void ExplicitStep<Element>::remember_load() {
   for (std::size_t k = 0; k < loaded_nodes_.size(); ++k) {
     const int32_t i = loaded_nodes_[k];
-    for (int c = 0; c < kDim; ++c) x_old_[c][k] = nodes_.x[c][i], fext_old_[c][k] = nodes_.fext[c][i];
+    for (int c = 0; c < kDim; ++c)
+      x_old_[c][k] = nodes_.x[c][i], fext_old_[c][k] = nodes_.fext[c][i];
   }
 }
 
@@ -412,9 +413,9 @@ void ExplicitStep<Element>::add_load_work(double& external_work) const {
 
 template <class Element>
 KernelView ExplicitStep<Element>::kernel_view() const {
-  return nodal_ ? KernelView{nodal_j_.data(), nodal_sm_.data(), s_element_.data(),
-                             j_element_.data()}
-                : KernelView{};
+  return nodal_
+             ? KernelView{nodal_j_.data(), nodal_sm_.data(), s_element_.data(), j_element_.data()}
+             : KernelView{};
 }
 
 template class ExplicitStep<Tri3>;

@@ -83,12 +83,9 @@ enum class Volumetric { kElement, kNodal, kBlend };
 // corners' rows gathered into contiguous buffers, a branch-free vectorised loop, the reductions
 // eight lanes at a time, then the scatter of the corner forces in element order.
 template <Volumetric kVolumetric, bool kSample>
-inline __attribute__((always_inline)) void tet4_loop(const Tet4Geometry& g,
-                                                     const PackedNode3* nodes,
-                                                     const KernelParams& p, std::size_t begin,
-                                                     std::size_t end, Tet4State& s,
-                                                     KernelTotals& totals, NodeForce3* node_force,
-                                                     bool& all_valid) {
+inline __attribute__((always_inline)) void tet4_loop(
+    const Tet4Geometry& g, const PackedNode3* nodes, const KernelParams& p, std::size_t begin,
+    std::size_t end, Tet4State& s, KernelTotals& totals, NodeForce3* node_force, bool& all_valid) {
   namespace cm = continuum;
   constexpr bool kNodal = kVolumetric != Volumetric::kElement;
   const double n = p.tait_n;
@@ -132,7 +129,8 @@ inline __attribute__((always_inline)) void tet4_loop(const Tet4Geometry& g,
       const NodeLanes3 na = nodes[node0[e]].lanes, nb = nodes[node1[e]].lanes,
                        nc = nodes[node2[e]].lanes, nd = nodes[node3[e]].lanes;
       const NodeLanes3 e1 = nb - na, e2 = nc - na, e3 = nd - na;
-      for (int c = 0; c < 3; ++c) edge[c][k] = e1[c], edge[3 + c][k] = e2[c], edge[6 + c][k] = e3[c];
+      for (int c = 0; c < 3; ++c)
+        edge[c][k] = e1[c], edge[3 + c][k] = e2[c], edge[6 + c][k] = e3[c];
       if constexpr (kNodal) {
         const NodeLanes3 sum = na + nb + nc + nd;
         const NodeLanes3 max_ab = na > nb ? na : nb, max_cd = nc > nd ? nc : nd;
@@ -176,8 +174,7 @@ inline __attribute__((always_inline)) void tet4_loop(const Tet4Geometry& g,
                             fs[5][e], fs[6][e], fs[7][e], fs[8][e]};
       const cm::Mat3 cof_prev = cm::cofactor(f_prev);
       const double j_prev = cm::det(f_prev, cof_prev);  // bit for bit the last evaluation's J
-      const double face_sq =
-          cm::largest_face_sq(e1x, e1y, e1z, e2x, e2y, e2z, e3x, e3y, e3z);
+      const double face_sq = cm::largest_face_sq(e1x, e1y, e1z, e2x, e2y, e2z, e3x, e3y, e3z);
       // Five quotients, one division (as for triangles): 1/J, 1/face^2 (the smallest altitude),
       // 1/(J + J_prev), 1/(J_prev dt), 1/(dt c^2).
       const double den_u = j + j_prev, den_v = j_prev * dt, den_z = dt * c_sq;
@@ -304,11 +301,11 @@ __attribute__((target_clones("avx512f", "avx2", "default"))) void compute_tet4_f
     tet4_loop_sampled<Volumetric::kElement>(p.sample, g, nodes, p, begin, end, s, totals,
                                             node_force, all_valid);
   else if (p.element_weight == 0.0)
-    tet4_loop_sampled<Volumetric::kNodal>(p.sample, g, nodes, p, begin, end, s, totals,
-                                          node_force, all_valid);
+    tet4_loop_sampled<Volumetric::kNodal>(p.sample, g, nodes, p, begin, end, s, totals, node_force,
+                                          all_valid);
   else
-    tet4_loop_sampled<Volumetric::kBlend>(p.sample, g, nodes, p, begin, end, s, totals,
-                                          node_force, all_valid);
+    tet4_loop_sampled<Volumetric::kBlend>(p.sample, g, nodes, p, begin, end, s, totals, node_force,
+                                          all_valid);
 
   if (!all_valid && totals.bad_element < 0) {  // rare: recompute J to name the first offender
     for (std::size_t e = begin; e < end; ++e) {

@@ -39,7 +39,8 @@ __attribute__((target_clones("avx512f", "avx2", "default"))) void accumulate_nod
       const NodeLanes3 a = nodes[n0[e]].lanes;
       const NodeLanes3 e1 = nodes[n1[e]].lanes - a, e2 = nodes[n2[e]].lanes - a,
                        e3 = nodes[n3[e]].lanes - a;
-      for (int c = 0; c < 3; ++c) edge[c][k] = e1[c], edge[3 + c][k] = e2[c], edge[6 + c][k] = e3[c];
+      for (int c = 0; c < 3; ++c)
+        edge[c][k] = e1[c], edge[3 + c][k] = e2[c], edge[6 + c][k] = e3[c];
     }
 #pragma GCC ivdep
     for (std::size_t k = 0; k < count; ++k) {
@@ -149,8 +150,8 @@ NodalPressureState nodal_pressure_state(const Tet4Geometry& g,
 // ---- central differences -------------------------------------------------------------------
 
 __attribute__((target_clones("avx512f", "avx2", "default"))) void predict_nodes(
-    double dt, std::size_t begin, std::size_t end, Components3 x, Components3 v,
-    ConstComponents3 a, PackedNode3* nodes) {
+    double dt, std::size_t begin, std::size_t end, Components3 x, Components3 v, ConstComponents3 a,
+    PackedNode3* nodes) {
   for (int c = 0; c < 3; ++c) {
     double* __restrict xc = x[c];
     double* __restrict vc = v[c];
@@ -218,8 +219,8 @@ std::vector<double> consistent_mass_weights(const Tet4Geometry& g, double densit
 }
 
 void accumulate_consistent_mass_difference(const Tet4Geometry& g, const double* weight,
-                                           ConstComponents3 a, std::size_t begin,
-                                           std::size_t end, NodeForce3* difference) {
+                                           ConstComponents3 a, std::size_t begin, std::size_t end,
+                                           NodeForce3* difference) {
   for (std::size_t e = begin; e < end; ++e) {
     const int32_t n[4] = {g.node0[e], g.node1[e], g.node2[e], g.node3[e]};
     ForceLanes3 corner[4];

@@ -70,8 +70,8 @@ void correct_mass_blend(double dt, double alpha, std::size_t begin, std::size_t 
 std::vector<double> consistent_mass_weights(const Tet4Geometry& geometry, double density);
 // (M_C - M_L) a: node i of element e gets rho V_e / 20 (sum of the other three a - 3 a_i).
 void accumulate_consistent_mass_difference(const Tet4Geometry& geometry, const double* weight,
-                                           ConstComponents3 a, std::size_t begin,
-                                           std::size_t end, NodeForce3* difference);
+                                           ConstComponents3 a, std::size_t begin, std::size_t end,
+                                           NodeForce3* difference);
 // p = K^-1 v for an initial velocity field (integrator.hpp's blended_momentum; ratio 4 alpha / 5).
 void blended_momentum(const Tet4Geometry& geometry, const double* weight, double alpha,
                       std::size_t nodes, const double* mass, Flags3 free, ConstComponents3 v,
@@ -86,7 +86,7 @@ inline double tet4_mass_blend_step_factor(double alpha) {
 StepBound volume_change_step(const Tet4Geometry& geometry, std::span<const int32_t> elements,
                              ConstComponents3 v, ConstComponents3 a, double max_volume_change);
 // The tetrahedra with a corner on any of the given nodes, ascending.
-std::vector<int32_t> elements_on_nodes(const Tet4Geometry& geometry,
-                                       std::span<const int32_t> nodes, std::size_t node_count);
+std::vector<int32_t> elements_on_nodes(const Tet4Geometry& geometry, std::span<const int32_t> nodes,
+                                       std::size_t node_count);
 
 }  // namespace softshock
