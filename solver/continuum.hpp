@@ -17,6 +17,10 @@ using Tensor = std::array<double, dim * dim>;
 using Mat2 = Tensor<2>;
 using Mat3 = Tensor<3>;
 
+// The 3-D helpers are large enough that GCC would call rather than inline them, and a call in the
+// element loop stops it vectorising: inlined always.
+#define SOFTSHOCK_ALWAYS_INLINE inline __attribute__((always_inline))
+
 // F = Ds * Dm^-1 with Ds = [x1 - x0, x2 - x0] (current edges), Dm^-1 precomputed.
 inline Mat2 deformation_gradient(double e1x, double e1y, double e2x, double e2y,
                                  const Mat2& dm_inv) {
@@ -81,7 +85,7 @@ inline double stabilization_bulk_modulus(double beta_kappa, double element_stres
 // ---- 3-D kinematics (Tet4) -------------------------------------------------------------
 
 // F = Ds Dm^-1, Ds's columns the current edges e1, e2, e3 (from node 0), Dm^-1 precomputed.
-inline Mat3 deformation_gradient(double e1x, double e1y, double e1z, double e2x, double e2y,
+SOFTSHOCK_ALWAYS_INLINE Mat3 deformation_gradient(double e1x, double e1y, double e1z, double e2x, double e2y,
                                  double e2z, double e3x, double e3y, double e3z,
                                  const Mat3& dm_inv) {
   const double* m = dm_inv.data();
@@ -93,22 +97,22 @@ inline Mat3 deformation_gradient(double e1x, double e1y, double e1z, double e2x,
 }
 
 // Cofactor J F^-T: row i, column j is (-1)^(i+j) times the minor of F_ij.
-inline Mat3 cofactor(const Mat3& f) {
+SOFTSHOCK_ALWAYS_INLINE Mat3 cofactor(const Mat3& f) {
   return {f[4] * f[8] - f[5] * f[7], f[5] * f[6] - f[3] * f[8], f[3] * f[7] - f[4] * f[6],
           f[2] * f[7] - f[1] * f[8], f[0] * f[8] - f[2] * f[6], f[1] * f[6] - f[0] * f[7],
           f[1] * f[5] - f[2] * f[4], f[2] * f[3] - f[0] * f[5], f[0] * f[4] - f[1] * f[3]};
 }
 
 // det F from F and its cofactor (expansion along the first row).
-inline double det(const Mat3& f, const Mat3& cof) {
+SOFTSHOCK_ALWAYS_INLINE double det(const Mat3& f, const Mat3& cof) {
   return f[0] * cof[0] + f[1] * cof[1] + f[2] * cof[2];
 }
-inline double det(const Mat3& f) {
+SOFTSHOCK_ALWAYS_INLINE double det(const Mat3& f) {
   return det(f, cofactor(f));
 }
 
 // I1 = tr(F^T F).
-inline double first_invariant(const Mat3& f) {
+SOFTSHOCK_ALWAYS_INLINE double first_invariant(const Mat3& f) {
   double sum = 0.0;
   for (double v : f) sum += v * v;
   return sum;
@@ -201,7 +205,7 @@ inline Mat2 viscous_piola(const Mat2& f, const Mat2& f_prev, const Mat2& cof, do
 // The same in 3-D, the full 3x3 deviator: l = ((F - F_prev) / dt) F_prev^-1 with F_prev^-1 =
 // cof(F_prev)^T / J_prev, d = sym(l), sigma_v = 2 nu (d - tr(d)/3 I) + zeta tr(d) I, P_v =
 // sigma_v cof(F). Takes cof_prev = cof(F_prev) and inv = 1 / (J_prev dt).
-inline Mat3 viscous_piola_inv(const Mat3& f, const Mat3& f_prev, const Mat3& cof_prev,
+SOFTSHOCK_ALWAYS_INLINE Mat3 viscous_piola_inv(const Mat3& f, const Mat3& f_prev, const Mat3& cof_prev,
                               const Mat3& cof, double nu, double zeta, double inv) {
   Mat3 df;
   for (int k = 0; k < 9; ++k) df[k] = f[k] - f_prev[k];
@@ -306,7 +310,7 @@ inline double aspect_ratio(double e1x, double e1y, double e2x, double e2y) {
 
 // The largest of the squared face-area vectors (times 2) of the tetrahedron with edges e1, e2, e3
 // from node 0: |e1 x e2|^2, |e2 x e3|^2, |e3 x e1|^2, |(e2 - e1) x (e3 - e1)|^2.
-inline double largest_face_sq(double e1x, double e1y, double e1z, double e2x, double e2y,
+SOFTSHOCK_ALWAYS_INLINE double largest_face_sq(double e1x, double e1y, double e1z, double e2x, double e2y,
                               double e2z, double e3x, double e3y, double e3z) {
   auto cross_sq = [](double ax, double ay, double az, double bx, double by, double bz) {
     const double cx = ay * bz - az * by, cy = az * bx - ax * bz, cz = ax * by - ay * bx;
@@ -320,7 +324,7 @@ inline double largest_face_sq(double e1x, double e1y, double e1z, double e2x, do
   return ab > cd ? ab : cd;
 }
 // The largest squared edge length of the tetrahedron (six edges).
-inline double longest_edge_sq(double e1x, double e1y, double e1z, double e2x, double e2y,
+SOFTSHOCK_ALWAYS_INLINE double longest_edge_sq(double e1x, double e1y, double e1z, double e2x, double e2y,
                               double e2z, double e3x, double e3y, double e3z) {
   auto sq = [](double x, double y, double z) { return x * x + y * y + z * z; };
   const double a = sq(e1x, e1y, e1z), b = sq(e2x, e2y, e2z), c = sq(e3x, e3y, e3z);
@@ -332,12 +336,12 @@ inline double longest_edge_sq(double e1x, double e1y, double e1z, double e2x, do
 }
 // Smallest altitude squared of a tetrahedron: (3 V / largest face area)^2 = (6 V)^2 / largest
 // |cross|^2, 6 V = det[e1 e2 e3].
-inline double smallest_altitude_sq(double six_volume, double largest_face_sq) {
+SOFTSHOCK_ALWAYS_INLINE double smallest_altitude_sq(double six_volume, double largest_face_sq) {
   return six_volume * six_volume / largest_face_sq;
 }
 // Aspect ratio of a tetrahedron, the longest edge over the smallest altitude (regular:
 // sqrt(3/2) = 1.2247), as for triangles.
-inline double aspect_ratio(double longest_edge_sq, double six_volume, double largest_face_sq) {
+SOFTSHOCK_ALWAYS_INLINE double aspect_ratio(double longest_edge_sq, double six_volume, double largest_face_sq) {
   return std::sqrt(longest_edge_sq * largest_face_sq) / six_volume;
 }
 // The altitude of the regular tetrahedron of volume V, sqrt(2/3) (6 sqrt(2) V)^(1/3): the

@@ -155,7 +155,7 @@ ElementStress3 Diagnostics3::element_stress(const NodalView3& nodes, const Tet4S
   for (int k = 0; k < 3; ++k)
     for (int c = 0; c < 3; ++c) edge[3 * k + c] = nodes.x[c][n[k + 1]] - nodes.x[c][n[0]];
   cm::Mat3 dm_inv;
-  for (int k = 0; k < 9; ++k) dm_inv[k] = g.dm_inv[k][e];
+  for (int k = 0; k < 9; ++k) dm_inv[k] = g.dm_inv_at(k, e);
   const cm::Mat3 f = cm::deformation_gradient(edge[0], edge[1], edge[2], edge[3], edge[4], edge[5],
                                               edge[6], edge[7], edge[8], dm_inv);
   const double j = cm::det(f);
@@ -170,8 +170,8 @@ ElementStress3 Diagnostics3::element_stress(const NodalView3& nodes, const Tet4S
     return f[3 * r] * f[3 * c] + f[3 * r + 1] * f[3 * c + 1] + f[3 * r + 2] * f[3 * c + 2];
   };
   auto viscous = [&](int r, int c) {  // (P_v F^T)_rc / J
-    return (s.pv[3 * r][e] * f[3 * c] + s.pv[3 * r + 1][e] * f[3 * c + 1] +
-            s.pv[3 * r + 2][e] * f[3 * c + 2]) /
+    return (s.pv_at(3 * r, e) * f[3 * c] + s.pv_at(3 * r + 1, e) * f[3 * c + 1] +
+            s.pv_at(3 * r + 2, e) * f[3 * c + 2]) /
            j;
   };
   ElementStress3 out;

@@ -14,7 +14,7 @@ Tet4Geometry build_tet4_geometry(const Mesh& mesh) {
   const std::size_t ne = mesh.tetrahedra.size();
   Tet4Geometry g;
   for (auto* v : {&g.node0, &g.node1, &g.node2, &g.node3}) v->resize(ne);
-  for (auto& v : g.dm_inv) v.resize(ne);
+  g.dm_inv.assign(tet4_blocked_size(ne), 0.0);
   g.volume0.resize(ne);
   g.regular_altitude0.resize(ne);
   for (std::size_t e = 0; e < ne; ++e) {
@@ -31,7 +31,7 @@ Tet4Geometry build_tet4_geometry(const Mesh& mesh) {
     const double det = continuum::det(dm, cof);
     // Dm^-1 = cof(Dm)^T / det.
     for (int i = 0; i < 3; ++i)
-      for (int j = 0; j < 3; ++j) g.dm_inv[3 * i + j][e] = cof[3 * j + i] / det;
+      for (int j = 0; j < 3; ++j) g.dm_inv[tet4_blocked_index(3 * i + j, e)] = cof[3 * j + i] / det;
     g.volume0[e] = det / 6.0;
     g.regular_altitude0[e] = continuum::regular_tetrahedron_altitude(g.volume0[e]);
   }
@@ -39,18 +39,19 @@ Tet4Geometry build_tet4_geometry(const Mesh& mesh) {
 }
 
 void Tet4State::resize(std::size_t elements) {
-  for (auto& v : f) v.assign(elements, 0.0);
-  for (auto& v : pv) v.assign(elements, 0.0f);
+  f.assign(tet4_blocked_size(elements), 0.0);
+  pv.assign(tet4_blocked_size(elements), 0.0f);
   viscosity.assign(elements, 0.0f);
   bulk_viscosity.assign(elements, 0.0f);
   reset_to_reference();
 }
 
 void Tet4State::reset_to_reference() {
-  for (int k = 0; k < 9; ++k) {
-    std::fill(f[k].begin(), f[k].end(), k % 4 == 0 ? 1.0 : 0.0);
-    std::fill(pv[k].begin(), pv[k].end(), 0.0f);
+  for (std::size_t i = 0; i < f.size(); ++i) {
+    const std::size_t component = i / kTet4Block % 9;
+    f[i] = component % 4 == 0 ? 1.0 : 0.0;  // the diagonal: components 0, 4, 8
   }
+  std::fill(pv.begin(), pv.end(), 0.0f);
   std::fill(viscosity.begin(), viscosity.end(), 0.0f);
   std::fill(bulk_viscosity.begin(), bulk_viscosity.end(), 0.0f);
 }
@@ -105,25 +106,35 @@ inline __attribute__((always_inline)) void tet4_loop(
 
   const int32_t *node0 = g.node0.data(), *node1 = g.node1.data(), *node2 = g.node2.data(),
                 *node3 = g.node3.data();
-  const double* dm[9];
-  for (int k = 0; k < 9; ++k) dm[k] = g.dm_inv[k].data();
   const double *volume0 = g.volume0.data(), *altitude0 = g.regular_altitude0.data();
-  double* fs[9];
-  float* pvs[9];
-  for (int k = 0; k < 9; ++k) fs[k] = s.f[k].data(), pvs[k] = s.pv[k].data();
 
-  constexpr std::size_t kBlock = 128;
+  // Three loops per block rather than one (loop fission): one loop over the whole element's work
+  // held ~80 values live and spilled most of them (82 ns per element, measured); each loop here
+  // keeps its working set in registers, its intermediates in small buffers in L1.
+  constexpr std::size_t kBlock = kTet4Block;
   alignas(64) double edge[9][kBlock];  // e1x, e1y, e1z, e2x, ..., e3z
   alignas(64) double nodal_sm_sum[kBlock], nodal_k_max[kBlock];
   alignas(64) double step_sq_out[kBlock], dissipation_out[kBlock], j_out[kBlock];
   alignas(64) double energy_out[kBlock], aspect_out[kBlock];  // kSample only
+  alignas(64) double f_now[9][kBlock], cof_now[9][kBlock];  // F and cof(F) of the block
+  // The elastic stress's two scalars (P_e = s cof + a F), the viscosities, 1 / (J_prev dt).
+  alignas(64) double s_coef[kBlock], a_coef[kBlock], nu_buf[kBlock], zeta_buf[kBlock],
+      inv_v_buf[kBlock];
+  alignas(64) double piola[9][kBlock];      // the total P
   alignas(64) double force_out[9][kBlock];  // corner forces of nodes 1..3 (x, y, z each)
   double min_step_sq = totals.min_step_sq;
   int64_t min_step_element = totals.min_step_element;
   Lanes8 dissipation_lanes = {}, energy_lanes = {}, aspect_lanes = {};
   Mask8 valid_lanes = Mask8{} - 1;
-  for (std::size_t block = begin; block < end; block += kBlock) {
-    const std::size_t count = std::min(kBlock, end - block);
+  for (std::size_t block = begin; block < end;) {
+    // The storage block holding element `block`: a range that starts inside one (a thread's, a
+    // test's single element) takes the rest of it first.
+    const std::size_t lane0 = block % kBlock;
+    const std::size_t count = std::min(kBlock - lane0, end - block);
+    const std::size_t blocked = tet4_blocked_index(0, block);
+    const double* __restrict dm = g.dm_inv.data() + blocked;  // dm[c * kBlock + k]
+    double* __restrict fs = s.f.data() + blocked;
+    float* __restrict pvs = s.pv.data() + blocked;
     for (std::size_t k = 0; k < count; ++k) {
       const std::size_t e = block + k;
       const NodeLanes3 na = nodes[node0[e]].lanes, nb = nodes[node1[e]].lanes,
@@ -138,18 +149,20 @@ inline __attribute__((always_inline)) void tet4_loop(
         nodal_sm_sum[k] = sum[3], nodal_k_max[k] = max_all[4];
       }
     }
+    // 1. Kinematics, the pointwise law, the viscosities and the stable step.
 #pragma GCC ivdep
     for (std::size_t k = 0; k < count; ++k) {
       const std::size_t e = block + k;
       const double e1x = edge[0][k], e1y = edge[1][k], e1z = edge[2][k];
       const double e2x = edge[3][k], e2y = edge[4][k], e2z = edge[5][k];
       const double e3x = edge[6][k], e3y = edge[7][k], e3z = edge[8][k];
-      const cm::Mat3 dm_inv{dm[0][e], dm[1][e], dm[2][e], dm[3][e], dm[4][e],
-                            dm[5][e], dm[6][e], dm[7][e], dm[8][e]};
+      cm::Mat3 dm_inv;
+      for (int c = 0; c < 9; ++c) dm_inv[c] = dm[c * kBlock + k];
       const cm::Mat3 f =
           cm::deformation_gradient(e1x, e1y, e1z, e2x, e2y, e2z, e3x, e3y, e3z, dm_inv);
       const cm::Mat3 cof = cm::cofactor(f);
       const double j = cm::det(f, cof);
+      for (int c = 0; c < 9; ++c) f_now[c][k] = f[c], cof_now[c][k] = cof[c];
       j_out[k] = j;
       double log_j = 0.0, j_minus_n = 0.0;
       if constexpr (kVolumetric != Volumetric::kNodal)
@@ -170,10 +183,9 @@ inline __attribute__((always_inline)) void tet4_loop(
       }
       const double c_sq = (bulk_modulus + four_thirds_mu) * j * inv_rho0;
 
-      const cm::Mat3 f_prev{fs[0][e], fs[1][e], fs[2][e], fs[3][e], fs[4][e],
-                            fs[5][e], fs[6][e], fs[7][e], fs[8][e]};
-      const cm::Mat3 cof_prev = cm::cofactor(f_prev);
-      const double j_prev = cm::det(f_prev, cof_prev);  // bit for bit the last evaluation's J
+      cm::Mat3 f_prev;
+      for (int c = 0; c < 9; ++c) f_prev[c] = fs[c * kBlock + k];
+      const double j_prev = cm::det(f_prev);  // bit for bit the last evaluation's J
       const double face_sq = cm::largest_face_sq(e1x, e1y, e1z, e2x, e2y, e2z, e3x, e3y, e3z);
       // Five quotients, one division (as for triangles): 1/J, 1/face^2 (the smallest altitude),
       // 1/(J + J_prev), 1/(J_prev dt), 1/(dt c^2).
@@ -189,10 +201,14 @@ inline __attribute__((always_inline)) void tet4_loop(
         j_minus_23 = ::cbrt(inv_j * inv_j);
       else
         j_minus_23 = ::exp(-2.0 / 3.0 * log_j);
-      const cm::Mat3 elastic = cm::elastic_piola_inv_j(f, cof, inv_j, mean_stress, mu, j_minus_23);
+      // P_e = sigma_m cof + mu J^-2/3 (F - I1/3 F^-T) = s cof + a F (continuum's elastic_piola).
+      const double a = mu * j_minus_23;
+      const double i1 = cm::first_invariant(f);
+      a_coef[k] = a;
+      s_coef[k] = mean_stress - a * i1 * (cm::kThird * inv_j);
       const double six_volume = 6.0 * volume0[e] * j;  // det [e1 e2 e3]
       if constexpr (kSample) {
-        double w = cm::neo_hookean_energy(mu, cm::first_invariant(f), j_minus_23);
+        double w = cm::neo_hookean_energy(mu, i1, j_minus_23);
         if constexpr (kVolumetric != Volumetric::kNodal)
           w += w_element * cm::tait_energy(kappa, n, j, j_minus_n);
         energy_out[k] = volume0[e] * w;
@@ -212,22 +228,37 @@ inline __attribute__((always_inline)) void tet4_loop(
       const double nu_step = p.eta + shear_share * nu_art;
       step_sq_out[k] =
           cm::stable_step_sq_kinematic(h_sq, c_sq, (4.0 / 3.0 * nu_step + zeta) * j * inv_rho0);
-      const cm::Mat3 pv = cm::viscous_piola_inv(f, f_prev, cof_prev, cof, nu, zeta, inv_v);
       shear_out[e] = static_cast<float>(nu), bulk_out[e] = static_cast<float>(zeta);
+      nu_buf[k] = nu, zeta_buf[k] = zeta, inv_v_buf[k] = inv_v;
+    }
+    // 2. The viscous stress from the lagged rate, the dissipation, the state, the total P.
+#pragma GCC ivdep
+    for (std::size_t k = 0; k < count; ++k) {
+      const std::size_t e = block + k;
+      cm::Mat3 f, cof, f_prev;
+      for (int c = 0; c < 9; ++c)
+        f[c] = f_now[c][k], cof[c] = cof_now[c][k], f_prev[c] = fs[c * kBlock + k];
+      const cm::Mat3 pv = cm::viscous_piola_inv(f, f_prev, cm::cofactor(f_prev), cof, nu_buf[k],
+                                                zeta_buf[k], inv_v_buf[k]);
       double work = 0.0;
-      for (int c = 0; c < 9; ++c) work += (pv[c] + pvs[c][e]) * (f[c] - f_prev[c]);
+      for (int c = 0; c < 9; ++c) work += (pv[c] + pvs[c * kBlock + k]) * (f[c] - f_prev[c]);
       dissipation_out[k] = 0.5 * volume0[e] * work;
-      for (int c = 0; c < 9; ++c) fs[c][e] = f[c], pvs[c][e] = static_cast<float>(pv[c]);
-
-      // Force on node a: -V0 P grad N_a, grad N_a the rows of Dm^-1 (a = 1, 2, 3).
+      for (int c = 0; c < 9; ++c) {
+        fs[c * kBlock + k] = f[c], pvs[c * kBlock + k] = static_cast<float>(pv[c]);
+        piola[c][k] = s_coef[k] * cof[c] + a_coef[k] * f[c] + pv[c];
+      }
+    }
+    // 3. Force on node a: -V0 P grad N_a, grad N_a the rows of Dm^-1 (a = 1, 2, 3).
+#pragma GCC ivdep
+    for (std::size_t k = 0; k < count; ++k) {
+      const std::size_t e = block + k;
       const double v0 = volume0[e];
       for (int a = 0; a < 3; ++a) {
-        const double g0 = dm_inv[3 * a], g1 = dm_inv[3 * a + 1], g2 = dm_inv[3 * a + 2];
-        for (int i = 0; i < 3; ++i) {
-          const double pi0 = elastic[3 * i] + pv[3 * i], pi1 = elastic[3 * i + 1] + pv[3 * i + 1],
-                       pi2 = elastic[3 * i + 2] + pv[3 * i + 2];
-          force_out[3 * a + i][k] = -v0 * (pi0 * g0 + pi1 * g1 + pi2 * g2);
-        }
+        const double g0 = dm[(3 * a) * kBlock + k], g1 = dm[(3 * a + 1) * kBlock + k],
+                     g2 = dm[(3 * a + 2) * kBlock + k];
+        for (int i = 0; i < 3; ++i)
+          force_out[3 * a + i][k] =
+              -v0 * (piola[3 * i][k] * g0 + piola[3 * i + 1][k] * g1 + piola[3 * i + 2][k] * g2);
       }
     }
     // Reductions, as in the triangle loop: the padded tail leaves each one unchanged.
@@ -266,6 +297,7 @@ inline __attribute__((always_inline)) void tet4_loop(
       node_force[node2[e]].lanes += f2;
       node_force[node3[e]].lanes += f3;
     }
+    block += count;
   }
   double dissipation = 0.0, element_energy = 0.0, max_aspect = totals.max_aspect_ratio;
   for (std::size_t lane = 0; lane < kLanes; ++lane) {
@@ -293,19 +325,56 @@ inline __attribute__((always_inline)) void tet4_loop_sampled(bool sample, Args&.
 
 }  // namespace
 
-__attribute__((target_clones("avx512f", "avx2", "default"))) void compute_tet4_forces(
+// One copy of the loops per instruction set, chosen once at run time: AVX-512, AVX2 with FMA (the
+// loops are mostly multiply-adds: target_clones' "avx2" has no FMA, and its "arch=haswell" clone
+// is chosen by CPU model, not features, so an AMD CPU would fall back to SSE2), and the baseline.
+namespace {
+
+#define SOFTSHOCK_TET4_ARGS g, nodes, p, begin, end, s, totals, node_force, valid
+#define SOFTSHOCK_TET4_VARIANTS(args)                                                           \
+  if (!p.nodal_pressure)                                                                        \
+    tet4_loop_sampled<Volumetric::kElement>(p.sample, args);                                   \
+  else if (p.element_weight == 0.0)                                                             \
+    tet4_loop_sampled<Volumetric::kNodal>(p.sample, args);                                     \
+  else                                                                                          \
+    tet4_loop_sampled<Volumetric::kBlend>(p.sample, args);
+
+using LoopFn = void (*)(const Tet4Geometry&, const PackedNode3*, const KernelParams&, std::size_t,
+                        std::size_t, Tet4State&, KernelTotals&, NodeForce3*, bool&);
+
+__attribute__((target("avx512f,avx512dq,avx512vl,avx2,fma"))) void loops_avx512(
     const Tet4Geometry& g, const PackedNode3* nodes, const KernelParams& p, std::size_t begin,
-    std::size_t end, Tet4State& s, KernelTotals& totals, NodeForce3* node_force) {
+    std::size_t end, Tet4State& s, KernelTotals& totals, NodeForce3* node_force, bool& valid) {
+  SOFTSHOCK_TET4_VARIANTS(SOFTSHOCK_TET4_ARGS)
+}
+__attribute__((target("avx2,fma"))) void loops_avx2(
+    const Tet4Geometry& g, const PackedNode3* nodes, const KernelParams& p, std::size_t begin,
+    std::size_t end, Tet4State& s, KernelTotals& totals, NodeForce3* node_force, bool& valid) {
+  SOFTSHOCK_TET4_VARIANTS(SOFTSHOCK_TET4_ARGS)
+}
+void loops_baseline(const Tet4Geometry& g, const PackedNode3* nodes, const KernelParams& p,
+                    std::size_t begin, std::size_t end, Tet4State& s, KernelTotals& totals,
+                    NodeForce3* node_force, bool& valid) {
+  SOFTSHOCK_TET4_VARIANTS(SOFTSHOCK_TET4_ARGS)
+}
+
+LoopFn pick_loops() {
+  __builtin_cpu_init();
+  if (__builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512dq") &&
+      __builtin_cpu_supports("avx512vl") && __builtin_cpu_supports("fma"))
+    return loops_avx512;
+  if (__builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma")) return loops_avx2;
+  return loops_baseline;
+}
+
+}  // namespace
+
+void compute_tet4_forces(const Tet4Geometry& g, const PackedNode3* nodes, const KernelParams& p,
+                         std::size_t begin, std::size_t end, Tet4State& s, KernelTotals& totals,
+                         NodeForce3* node_force) {
+  static const LoopFn loops = pick_loops();
   bool all_valid = true;
-  if (!p.nodal_pressure)
-    tet4_loop_sampled<Volumetric::kElement>(p.sample, g, nodes, p, begin, end, s, totals,
-                                            node_force, all_valid);
-  else if (p.element_weight == 0.0)
-    tet4_loop_sampled<Volumetric::kNodal>(p.sample, g, nodes, p, begin, end, s, totals, node_force,
-                                          all_valid);
-  else
-    tet4_loop_sampled<Volumetric::kBlend>(p.sample, g, nodes, p, begin, end, s, totals, node_force,
-                                          all_valid);
+  loops(g, nodes, p, begin, end, s, totals, node_force, all_valid);
 
   if (!all_valid && totals.bad_element < 0) {  // rare: recompute J to name the first offender
     for (std::size_t e = begin; e < end; ++e) {
@@ -313,7 +382,7 @@ __attribute__((target_clones("avx512f", "avx2", "default"))) void compute_tet4_f
       const NodeLanes3 e1 = nodes[g.node1[e]].lanes - a, e2 = nodes[g.node2[e]].lanes - a,
                        e3 = nodes[g.node3[e]].lanes - a;
       continuum::Mat3 dm_inv;
-      for (int k = 0; k < 9; ++k) dm_inv[k] = g.dm_inv[k][e];
+      for (int k = 0; k < 9; ++k) dm_inv[k] = g.dm_inv_at(k, e);
       const double j = continuum::det(continuum::deformation_gradient(
           e1[0], e1[1], e1[2], e2[0], e2[1], e2[2], e3[0], e3[1], e3[2], dm_inv));
       if (!(j > 0.0)) {

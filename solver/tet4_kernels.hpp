@@ -14,28 +14,48 @@
 
 namespace softshock {
 
+// Per-element 3x3 quantities are stored in blocks of kTet4Block elements, component by component
+// ([block][component][lane]): the element loop then reaches all nine components of a block from
+// one pointer (separate arrays per component needed 27 pointers live and spilled them).
+inline constexpr std::size_t kTet4Block = 64;
+inline std::size_t tet4_blocked_index(int component, std::size_t e) {
+  return (e / kTet4Block) * 9 * kTet4Block + static_cast<std::size_t>(component) * kTet4Block +
+         e % kTet4Block;
+}
+inline std::size_t tet4_blocked_size(std::size_t elements) {
+  return (elements + kTet4Block - 1) / kTet4Block * 9 * kTet4Block;
+}
+
 // Reference geometry of the tetrahedra (constant during a run).
 struct Tet4Geometry {
   std::vector<int32_t> node0, node1, node2, node3;
-  // Dm^-1 with Dm = [X1 - X0, X2 - X0, X3 - X0], row-major: row a - 1 is the reference gradient
-  // of N_a (a = 1, 2, 3; grad N_0 = -their sum).
-  std::array<std::vector<double>, 9> dm_inv;
+  // Dm^-1 with Dm = [X1 - X0, X2 - X0, X3 - X0], row-major, blocked: component 3 (a - 1) + j is
+  // the j-th entry of the reference gradient of N_a (a = 1, 2, 3; grad N_0 = -their sum).
+  std::vector<double> dm_inv;
   std::vector<double> volume0;  // m^3
   // The regular tetrahedron's altitude at volume0 (continuum::regular_tetrahedron_altitude): the
   // continuous artificial viscosity's length is this times J^(1/3).
   std::vector<double> regular_altitude0;
   std::size_t size() const { return volume0.size(); }
+  double dm_inv_at(int component, std::size_t e) const {
+    return dm_inv[tet4_blocked_index(component, e)];
+  }
 };
 // From a finalized 3-D mesh. Throws std::invalid_argument for a mesh without tetrahedra.
 Tet4Geometry build_tet4_geometry(const Mesh& mesh);
 
-// Element state carried from one force evaluation to the next (as ElementState for triangles).
+// Element state carried from one force evaluation to the next (as ElementState for triangles),
+// the 3x3 ones blocked as the geometry's Dm^-1.
 struct Tet4State {
-  std::array<std::vector<double>, 9> f;  // F at the last evaluation (lags the viscosity)
-  std::array<std::vector<float>, 9> pv;  // viscous P at the last evaluation (dissipation only)
+  std::vector<double> f;  // F at the last evaluation (lags the viscosity)
+  std::vector<float> pv;  // viscous P at the last evaluation (dissipation, diagnostics only)
   std::vector<float> viscosity, bulk_viscosity;  // its shear nu and bulk zeta, Pa s
   void resize(std::size_t elements);
   void reset_to_reference();  // F = I, P_v = 0
+  double f_at(int component, std::size_t e) const { return f[tet4_blocked_index(component, e)]; }
+  double pv_at(int component, std::size_t e) const {
+    return pv[tet4_blocked_index(component, e)];
+  }
 };
 
 // nodes[i]'s position lanes = (x[i], y[i], z[i]), for i in [begin, end).

@@ -218,17 +218,35 @@ std::vector<double> consistent_mass_weights(const Tet4Geometry& g, double densit
   return weight;
 }
 
-void accumulate_consistent_mass_difference(const Tet4Geometry& g, const double* weight,
-                                           ConstComponents3 a, std::size_t begin, std::size_t end,
-                                           NodeForce3* difference) {
-  for (std::size_t e = begin; e < end; ++e) {
-    const int32_t n[4] = {g.node0[e], g.node1[e], g.node2[e], g.node3[e]};
-    ForceLanes3 corner[4];
-    for (int k = 0; k < 4; ++k) corner[k] = ForceLanes3{a[0][n[k]], a[1][n[k]], a[2][n[k]], 0.0};
-    const ForceLanes3 sum = corner[0] + corner[1] + corner[2] + corner[3];
-    const double w = weight[e];
-    // sum of the other three minus 3 a_i = sum - 4 a_i
-    for (int k = 0; k < 4; ++k) difference[n[k]].lanes += w * (sum - 4.0 * corner[k]);
+// Blocked like the other element passes: the corners' accelerations gathered into contiguous
+// buffers, the differences computed vectorised, then added to the nodes in element order (a
+// scalar loop over 4-lane rows cost 34 ns per element at 100k, measured).
+__attribute__((target_clones("avx512f", "avx2", "default"))) void
+accumulate_consistent_mass_difference(const Tet4Geometry& g, const double* weight,
+                                      ConstComponents3 a, std::size_t begin, std::size_t end,
+                                      NodeForce3* difference) {
+  const int32_t* corner_of[4] = {g.node0.data(), g.node1.data(), g.node2.data(), g.node3.data()};
+  alignas(64) double corner[4][3][kBlock], out[4][3][kBlock];
+  for (std::size_t block = begin; block < end; block += kBlock) {
+    const std::size_t count = std::min(kBlock, end - block);
+    for (int v = 0; v < 4; ++v)
+      for (std::size_t k = 0; k < count; ++k) {
+        const int32_t i = corner_of[v][block + k];
+        corner[v][0][k] = a[0][i], corner[v][1][k] = a[1][i], corner[v][2][k] = a[2][i];
+      }
+#pragma GCC ivdep
+    for (std::size_t k = 0; k < count; ++k) {
+      const double w = weight[block + k];
+      for (int c = 0; c < 3; ++c) {
+        const double sum = corner[0][c][k] + corner[1][c][k] + corner[2][c][k] + corner[3][c][k];
+        // sum of the other three minus 3 a_i = sum - 4 a_i
+        for (int v = 0; v < 4; ++v) out[v][c][k] = w * (sum - 4.0 * corner[v][c][k]);
+      }
+    }
+    for (std::size_t k = 0; k < count; ++k)
+      for (int v = 0; v < 4; ++v)
+        difference[corner_of[v][block + k]].lanes +=
+            ForceLanes3{out[v][0][k], out[v][1][k], out[v][2][k], 0.0};
   }
 }
 
@@ -269,7 +287,8 @@ StepBound volume_change_step(const Tet4Geometry& g, std::span<const int32_t> ele
     auto divergence = [&](ConstComponents3 u) {
       double div = 0.0;
       for (int k = 1; k <= 3; ++k)
-        for (int c = 0; c < 3; ++c) div += (u[c][n[k]] - u[c][n[0]]) * g.dm_inv[3 * (k - 1) + c][e];
+        for (int c = 0; c < 3; ++c)
+          div += (u[c][n[k]] - u[c][n[0]]) * g.dm_inv_at(3 * (k - 1) + c, e);
       return div;
     };
     const double p = std::fabs(divergence(v)), q = std::fabs(divergence(a));
