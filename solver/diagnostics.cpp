@@ -131,6 +131,17 @@ __attribute__((target_clones("avx512f", "avx2", "default"))) void fourier_sums(
 PolarFrame polar_frame(const Problem& problem) {
   if (problem.reference_radius_m > 0) return {problem.origin, problem.reference_radius_m};
   const Mesh& mesh = problem.mesh;
+  if (mesh.dimension() == 3) {  // about the z axis through the volume centroid
+    const auto c = tet_mesh_centroid(mesh);
+    std::vector<uint8_t> on_boundary(mesh.node_count(), 0);
+    for (const auto& f : mesh.boundary_faces)
+      for (int32_t i : f) on_boundary[i] = 1;
+    double sum = 0;
+    std::size_t count = 0;
+    for (std::size_t i = 0; i < mesh.node_count(); ++i)
+      if (on_boundary[i]) sum += std::hypot(mesh.x[i] - c[0], mesh.y[i] - c[1]), ++count;
+    return {{c[0], c[1]}, count ? sum / static_cast<double>(count) : 1.0};
+  }
   const auto origin = mesh_centroid(mesh);
   double sum = 0;
   for (int32_t i : mesh.boundary_nodes)

@@ -40,10 +40,10 @@ Diagnostics3::Diagnostics3(const Problem& problem, const Tet4Geometry& geometry,
       nodal_pressure_(problem.element.formulation == ElementFormulation::kAverageNodalPressure) {
   const Mesh& mesh = problem.mesh;
   const std::size_t nn = mesh.node_count();
-  // The axis: the problem's origin, else the volume centroid's (x, y).
-  const auto centroid = tet_mesh_centroid(mesh);
-  origin_ = problem.reference_radius_m > 0 ? problem.origin
-                                           : std::array<double, 2>{centroid[0], centroid[1]};
+  // The axis and R0: the problem's, else the volume centroid's (x, y) and the boundary nodes'
+  // mean distance from the axis (polar_frame).
+  const PolarFrame frame = polar_frame(problem);
+  origin_ = frame.origin;
   z_mid_ = problem.mid_plane_z_m;
 
   // The lateral surface: boundary faces whose outward normal is mostly radial; each node's share
@@ -63,16 +63,13 @@ Diagnostics3::Diagnostics3(const Problem& problem, const Tet4Geometry& geometry,
     if (!(radial > 0.5)) continue;  // faces of the top, bottom or anything facing inwards
     for (int32_t i : f) lateral_area[i] += 0.5 * norm / 3.0;
   }
-  double lateral_total = 0.0, radius_sum = 0.0;
+  double lateral_total = 0.0;
   for (std::size_t i = 0; i < nn; ++i) {
     if (lateral_area[i] <= 0) continue;
     lateral_nodes_.push_back(static_cast<int32_t>(i));
     lateral_total += lateral_area[i];
-    radius_sum += lateral_area[i] * std::hypot(mesh.x[i] - origin_[0], mesh.y[i] - origin_[1]);
   }
-  reference_radius_ = problem.reference_radius_m > 0
-                          ? problem.reference_radius_m
-                          : (lateral_total > 0 ? radius_sum / lateral_total : 1.0);
+  reference_radius_ = frame.reference_radius_m;
 
   // The mid-plane rim: lateral nodes at z_mid, in angle order.
   const double tol = 1e-6 * reference_radius_;

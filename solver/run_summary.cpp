@@ -86,10 +86,18 @@ RunSummary summarize(const Problem& problem, const RunResult& r) {
                                                  : "failed";
   s.error = r.error;
   s.failure = failure_name(r.failure);
+  // 3-D energies are the body's (J); the summary's are per metre along z.
+  double per_metre = 1.0;
+  if (problem.mesh.dimension() == 3) {
+    const auto [lo, hi] = std::minmax_element(problem.mesh.z.begin(), problem.mesh.z.end());
+    s.dimension = 3;
+    s.thickness_m = *hi - *lo;
+    per_metre = 1.0 / s.thickness_m;
+  }
   const std::size_t n = h.size();
   if (n == 0) return s;
   s.end_time_s = h.time.back();
-  s.energy_injected_J_per_m = h.external_work.back();
+  s.energy_injected_J_per_m = per_metre * h.external_work.back();
 
   const double pulse_end = problem.load.end_s();
   const double first_cycle_end = 4.0 * s.groups.time_scale_s;
@@ -110,7 +118,7 @@ RunSummary summarize(const Problem& problem, const RunResult& r) {
       center_min = std::min(center_min, h.center_mean_stress[k]);
     }
     if (!after_pulse_found && h.time[k] >= pulse_end * (1 - 1e-12)) {
-      s.energy_after_pulse_J_per_m = h.kinetic_energy[k] + h.elastic_energy[k];
+      s.energy_after_pulse_J_per_m = per_metre * (h.kinetic_energy[k] + h.elastic_energy[k]);
       after_pulse_found = true;
     }
   }
@@ -158,8 +166,9 @@ std::string summary_to_json(const RunSummary& s) {
     o << ",\"error\":\"" << e << "\"";
   }
   if (!s.failure.empty()) o << ",\"failure\":\"" << s.failure << "\"";
-  o << ",\"solver_revision\":" << s.solver_revision << ",\"elements\":" << s.elements
-    << ",\"nodes\":" << s.nodes << ",\"steps\":" << s.steps
+  o << ",\"solver_revision\":" << s.solver_revision;
+  if (s.dimension == 3) o << ",\"dimension\":3,\"thickness_m\":" << number(s.thickness_m);
+  o << ",\"elements\":" << s.elements << ",\"nodes\":" << s.nodes << ",\"steps\":" << s.steps
     << ",\"wall_time_s\":" << number(s.wall_time_s) << ",\"end_time_s\":" << number(s.end_time_s)
     << ",\"groups\":{\"pbar\":" << number(s.groups.pbar)
     << ",\"tbar_pulse\":" << number(s.groups.tbar_pulse) << ",\"mubar\":" << number(s.groups.mubar)

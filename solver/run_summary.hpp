@@ -32,6 +32,10 @@ inline constexpr int kSolverRevision = 4;
 
 struct RunSummary {
   int solver_revision = kSolverRevision;  // of the solver that produced it; 0 = not recorded
+  // 3-D: the mesh's extent along z, which the per-metre energies divide the body's by (for the
+  // cylinder its thickness: per unit thickness, as a plane-strain run's); 0 in 2-D.
+  int dimension = 2;
+  double thickness_m = 0;
   std::size_t elements = 0, nodes = 0;
   int64_t steps = 0;
   double wall_time_s = 0;

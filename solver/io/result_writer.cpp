@@ -446,15 +446,28 @@ void ResultWriter::finish(const History& history, const RunSummary& summary, boo
     throw std::invalid_argument("ResultWriter::finish: " + std::to_string(history.modes.size()) +
                                 " mode samples for " + std::to_string(samples) + " time samples");
   }
-  const std::size_t mode_cols = history.modes.empty() ? 0 : history.modes.front().size();
-  std::vector<double> amplitudes;
-  amplitudes.reserve(history.modes.size() * mode_cols);
-  for (const auto& row : history.modes) {
-    if (row.size() != mode_cols) {
-      throw std::invalid_argument("ResultWriter::finish: mode samples differ in length");
+  // Rows of mode amplitudes as one row-major matrix (all rows the same length).
+  auto matrix = [](const std::vector<std::vector<double>>& rows, std::size_t& cols) {
+    cols = rows.empty() ? 0 : rows.front().size();
+    std::vector<double> out;
+    out.reserve(rows.size() * cols);
+    for (const auto& row : rows) {
+      if (row.size() != cols) {
+        throw std::invalid_argument("ResultWriter::finish: mode samples differ in length");
+      }
+      out.insert(out.end(), row.begin(), row.end());
     }
-    amplitudes.insert(amplitudes.end(), row.begin(), row.end());
+    return out;
+  };
+  std::size_t mode_cols = 0, z_mean_cols = 0;
+  const std::vector<double> amplitudes = matrix(history.modes, mode_cols);
+  // 3-D: the modes averaged over the thickness too (History::modes_z_mean).
+  if (!history.modes_z_mean.empty() && history.modes_z_mean.size() != samples) {
+    throw std::invalid_argument(
+        "ResultWriter::finish: " + std::to_string(history.modes_z_mean.size()) +
+        " z-mean mode samples for " + std::to_string(samples));
   }
+  const std::vector<double> z_mean = matrix(history.modes_z_mean, z_mean_cols);
   const std::string summary_json = summary_to_json(summary);
 
   const std::string& path = m.tmp_name;
@@ -473,6 +486,10 @@ void ResultWriter::finish(const History& history, const RunSummary& summary, boo
       write_doubles(modes.get(), "time", history.time.data(), vector_shape(mode_rows), "s", path);
       write_doubles(modes.get(), "amplitude", amplitudes.data(), matrix_shape(mode_rows, mode_cols),
                     "1", path);
+      if (!history.modes_z_mean.empty()) {
+        write_doubles(modes.get(), "amplitude_z_mean", z_mean.data(),
+                      matrix_shape(history.modes_z_mean.size(), z_mean_cols), "1", path);
+      }
 
       write_string_attr(root, "summary", summary_json, path);
       write_int_attr(root, "steps", summary.steps, H5T_STD_I64LE, path);
