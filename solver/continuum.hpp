@@ -85,9 +85,9 @@ inline double stabilization_bulk_modulus(double beta_kappa, double element_stres
 // ---- 3-D kinematics (Tet4) -------------------------------------------------------------
 
 // F = Ds Dm^-1, Ds's columns the current edges e1, e2, e3 (from node 0), Dm^-1 precomputed.
-SOFTSHOCK_ALWAYS_INLINE Mat3 deformation_gradient(double e1x, double e1y, double e1z, double e2x, double e2y,
-                                 double e2z, double e3x, double e3y, double e3z,
-                                 const Mat3& dm_inv) {
+SOFTSHOCK_ALWAYS_INLINE Mat3 deformation_gradient(double e1x, double e1y, double e1z, double e2x,
+                                                  double e2y, double e2z, double e3x, double e3y,
+                                                  double e3z, const Mat3& dm_inv) {
   const double* m = dm_inv.data();
   return {e1x * m[0] + e2x * m[3] + e3x * m[6], e1x * m[1] + e2x * m[4] + e3x * m[7],
           e1x * m[2] + e2x * m[5] + e3x * m[8], e1y * m[0] + e2y * m[3] + e3y * m[6],
@@ -205,8 +205,9 @@ inline Mat2 viscous_piola(const Mat2& f, const Mat2& f_prev, const Mat2& cof, do
 // The same in 3-D, the full 3x3 deviator: l = ((F - F_prev) / dt) F_prev^-1 with F_prev^-1 =
 // cof(F_prev)^T / J_prev, d = sym(l), sigma_v = 2 nu (d - tr(d)/3 I) + zeta tr(d) I, P_v =
 // sigma_v cof(F). Takes cof_prev = cof(F_prev) and inv = 1 / (J_prev dt).
-SOFTSHOCK_ALWAYS_INLINE Mat3 viscous_piola_inv(const Mat3& f, const Mat3& f_prev, const Mat3& cof_prev,
-                              const Mat3& cof, double nu, double zeta, double inv) {
+SOFTSHOCK_ALWAYS_INLINE Mat3 viscous_piola_inv(const Mat3& f, const Mat3& f_prev,
+                                               const Mat3& cof_prev, const Mat3& cof, double nu,
+                                               double zeta, double inv) {
   Mat3 df;
   for (int k = 0; k < 9; ++k) df[k] = f[k] - f_prev[k];
   // l_ij = sum_k dF_ik (F_prev^-1)_kj = sum_k dF_ik cof_prev_jk / (J_prev dt)
@@ -310,8 +311,9 @@ inline double aspect_ratio(double e1x, double e1y, double e2x, double e2y) {
 
 // The largest of the squared face-area vectors (times 2) of the tetrahedron with edges e1, e2, e3
 // from node 0: |e1 x e2|^2, |e2 x e3|^2, |e3 x e1|^2, |(e2 - e1) x (e3 - e1)|^2.
-SOFTSHOCK_ALWAYS_INLINE double largest_face_sq(double e1x, double e1y, double e1z, double e2x, double e2y,
-                              double e2z, double e3x, double e3y, double e3z) {
+SOFTSHOCK_ALWAYS_INLINE double largest_face_sq(double e1x, double e1y, double e1z, double e2x,
+                                               double e2y, double e2z, double e3x, double e3y,
+                                               double e3z) {
   auto cross_sq = [](double ax, double ay, double az, double bx, double by, double bz) {
     const double cx = ay * bz - az * by, cy = az * bx - ax * bz, cz = ax * by - ay * bx;
     return cx * cx + cy * cy + cz * cz;
@@ -324,8 +326,9 @@ SOFTSHOCK_ALWAYS_INLINE double largest_face_sq(double e1x, double e1y, double e1
   return ab > cd ? ab : cd;
 }
 // The largest squared edge length of the tetrahedron (six edges).
-SOFTSHOCK_ALWAYS_INLINE double longest_edge_sq(double e1x, double e1y, double e1z, double e2x, double e2y,
-                              double e2z, double e3x, double e3y, double e3z) {
+SOFTSHOCK_ALWAYS_INLINE double longest_edge_sq(double e1x, double e1y, double e1z, double e2x,
+                                               double e2y, double e2z, double e3x, double e3y,
+                                               double e3z) {
   auto sq = [](double x, double y, double z) { return x * x + y * y + z * z; };
   const double a = sq(e1x, e1y, e1z), b = sq(e2x, e2y, e2z), c = sq(e3x, e3y, e3z);
   const double d = sq(e2x - e1x, e2y - e1y, e2z - e1z), e = sq(e3x - e2x, e3y - e2y, e3z - e2z),
@@ -341,7 +344,8 @@ SOFTSHOCK_ALWAYS_INLINE double smallest_altitude_sq(double six_volume, double la
 }
 // Aspect ratio of a tetrahedron, the longest edge over the smallest altitude (regular:
 // sqrt(3/2) = 1.2247), as for triangles.
-SOFTSHOCK_ALWAYS_INLINE double aspect_ratio(double longest_edge_sq, double six_volume, double largest_face_sq) {
+SOFTSHOCK_ALWAYS_INLINE double aspect_ratio(double longest_edge_sq, double six_volume,
+                                            double largest_face_sq) {
   return std::sqrt(longest_edge_sq * largest_face_sq) / six_volume;
 }
 // The altitude of the regular tetrahedron of volume V, sqrt(2/3) (6 sqrt(2) V)^(1/3): the

@@ -116,7 +116,7 @@ inline __attribute__((always_inline)) void tet4_loop(
   alignas(64) double nodal_sm_sum[kBlock], nodal_k_max[kBlock];
   alignas(64) double step_sq_out[kBlock], dissipation_out[kBlock], j_out[kBlock];
   alignas(64) double energy_out[kBlock], aspect_out[kBlock];  // kSample only
-  alignas(64) double f_now[9][kBlock], cof_now[9][kBlock];  // F and cof(F) of the block
+  alignas(64) double f_now[9][kBlock], cof_now[9][kBlock];    // F and cof(F) of the block
   // The elastic stress's two scalars (P_e = s cof + a F), the viscosities, 1 / (J_prev dt).
   alignas(64) double s_coef[kBlock], a_coef[kBlock], nu_buf[kBlock], zeta_buf[kBlock],
       inv_v_buf[kBlock];
@@ -331,12 +331,12 @@ inline __attribute__((always_inline)) void tet4_loop_sampled(bool sample, Args&.
 namespace {
 
 #define SOFTSHOCK_TET4_ARGS g, nodes, p, begin, end, s, totals, node_force, valid
-#define SOFTSHOCK_TET4_VARIANTS(args)                                                           \
-  if (!p.nodal_pressure)                                                                        \
-    tet4_loop_sampled<Volumetric::kElement>(p.sample, args);                                   \
-  else if (p.element_weight == 0.0)                                                             \
-    tet4_loop_sampled<Volumetric::kNodal>(p.sample, args);                                     \
-  else                                                                                          \
+#define SOFTSHOCK_TET4_VARIANTS(args)                        \
+  if (!p.nodal_pressure)                                     \
+    tet4_loop_sampled<Volumetric::kElement>(p.sample, args); \
+  else if (p.element_weight == 0.0)                          \
+    tet4_loop_sampled<Volumetric::kNodal>(p.sample, args);   \
+  else                                                       \
     tet4_loop_sampled<Volumetric::kBlend>(p.sample, args);
 
 using LoopFn = void (*)(const Tet4Geometry&, const PackedNode3*, const KernelParams&, std::size_t,
@@ -347,16 +347,17 @@ __attribute__((target("avx512f,avx512dq,avx512vl,avx2,fma"))) void loops_avx512(
     std::size_t end, Tet4State& s, KernelTotals& totals, NodeForce3* node_force, bool& valid) {
   SOFTSHOCK_TET4_VARIANTS(SOFTSHOCK_TET4_ARGS)
 }
-__attribute__((target("avx2,fma"))) void loops_avx2(
-    const Tet4Geometry& g, const PackedNode3* nodes, const KernelParams& p, std::size_t begin,
-    std::size_t end, Tet4State& s, KernelTotals& totals, NodeForce3* node_force, bool& valid) {
+__attribute__((target("avx2,fma"))) void loops_avx2(const Tet4Geometry& g, const PackedNode3* nodes,
+                                                    const KernelParams& p, std::size_t begin,
+                                                    std::size_t end, Tet4State& s,
+                                                    KernelTotals& totals, NodeForce3* node_force,
+                                                    bool& valid) {
   SOFTSHOCK_TET4_VARIANTS(SOFTSHOCK_TET4_ARGS)
 }
 void loops_baseline(const Tet4Geometry& g, const PackedNode3* nodes, const KernelParams& p,
                     std::size_t begin, std::size_t end, Tet4State& s, KernelTotals& totals,
-                    NodeForce3* node_force, bool& valid) {
-  SOFTSHOCK_TET4_VARIANTS(SOFTSHOCK_TET4_ARGS)
-}
+                    NodeForce3* node_force,
+                    bool& valid){SOFTSHOCK_TET4_VARIANTS(SOFTSHOCK_TET4_ARGS)}
 
 LoopFn pick_loops() {
   __builtin_cpu_init();

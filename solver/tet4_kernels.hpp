@@ -53,9 +53,7 @@ struct Tet4State {
   void resize(std::size_t elements);
   void reset_to_reference();  // F = I, P_v = 0
   double f_at(int component, std::size_t e) const { return f[tet4_blocked_index(component, e)]; }
-  double pv_at(int component, std::size_t e) const {
-    return pv[tet4_blocked_index(component, e)];
-  }
+  double pv_at(int component, std::size_t e) const { return pv[tet4_blocked_index(component, e)]; }
 };
 
 // nodes[i]'s position lanes = (x[i], y[i], z[i]), for i in [begin, end).

@@ -271,9 +271,10 @@ TEST(Tet4, StabilisationControlsTheElementVolumeModes) {
   const int free_modes = analyse(0.0, &nodal_volumes, &volumes);
   const int stabilised_modes = analyse(0.01, nullptr, nullptr);
   const int nodal_null = null_space(nodal_volumes), element_null = null_space(volumes);
-  std::printf("%zu nodes, %zu DOF: %d zero-energy modes with nodal pressure alone, %d stabilised "
-              "(the isochoric motions)\n",
-              nn, dof, free_modes, stabilised_modes);
+  std::printf(
+      "%zu nodes, %zu DOF: %d zero-energy modes with nodal pressure alone, %d stabilised "
+      "(the isochoric motions)\n",
+      nn, dof, free_modes, stabilised_modes);
   EXPECT_EQ(free_modes, nodal_null);
   EXPECT_EQ(stabilised_modes, element_null);
   EXPECT_GE(nodal_null, static_cast<int>(2 * nn));  // 64 nodes, 192 DOF
