@@ -73,9 +73,11 @@ struct Header {
   std::uint64_t z_nodes, tetrahedra, boundary_faces;  // 3-D; 0 in a 2-D entry
 };
 
+// Empty arrays (a 2-D mesh's 3-D ones, and the reverse) may have a null data(): skipped, as
+// memcpy from or to null is undefined even for zero bytes.
 template <typename T>
 void append(std::string& out, const std::vector<T>& v) {
-  out.append(reinterpret_cast<const char*>(v.data()), v.size() * sizeof(T));
+  if (!v.empty()) out.append(reinterpret_cast<const char*>(v.data()), v.size() * sizeof(T));
 }
 
 std::string serialize(const std::string& material, const Mesh& mesh) {
@@ -122,6 +124,7 @@ template <typename T>
 bool take(std::string_view& in, std::vector<T>& v, std::uint64_t count) {
   if (count > in.size() / sizeof(T)) return false;
   v.resize(count);
+  if (count == 0) return true;  // data() may be null; see append()
   std::memcpy(v.data(), in.data(), count * sizeof(T));
   in.remove_prefix(count * sizeof(T));
   return true;

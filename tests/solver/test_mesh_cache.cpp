@@ -36,7 +36,9 @@ class ScratchDir : public testing::ScratchDir {
 // Byte-for-byte equality of every array (== on doubles would let -0.0 and 0.0 pass).
 template <typename T>
 bool same_bytes(const std::vector<T>& a, const std::vector<T>& b) {
-  return a.size() == b.size() && std::memcmp(a.data(), b.data(), a.size() * sizeof(T)) == 0;
+  // Empty vectors may have a null data(), which memcmp must not see even for zero bytes.
+  return a.size() == b.size() &&
+         (a.empty() || std::memcmp(a.data(), b.data(), a.size() * sizeof(T)) == 0);
 }
 void expect_identical(const Mesh& a, const Mesh& b) {
   EXPECT_TRUE(same_bytes(a.x, b.x));
