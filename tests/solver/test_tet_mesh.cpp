@@ -25,6 +25,14 @@
 #include "solver/gmsh_mesher.hpp"
 #include "solver/mesh.hpp"
 
+// LeakSanitizer (the sanitized unit-test stage): Gmsh 4.8.4 itself leaks a few kB per 3-D mesh
+// of curved OCC surfaces (in meshGFace with the frontal and Delaunay surface algorithms, and
+// 64 B in tetgenBR::tetgenmesh::reconstructmesh); not ours to fix. Only allocations made under a
+// libgmsh frame are excused. Read by LSan when it is linked in; otherwise an unused function.
+extern "C" const char* __lsan_default_suppressions() {
+  return "leak:libgmsh.so\n";
+}
+
 namespace softshock {
 namespace {
 
@@ -445,46 +453,54 @@ double mean_edge(const Mesh& m) {
   return sum / (6.0 * static_cast<double>(m.tetrahedra.size()));
 }
 
-TEST(CylinderMesh, VolumeCountAndMidPlaneRim) {
+// Volume, count, and the mid-plane: meshed inside (an interface, no boundary face in it) with
+// nodes on its rim r = R, z = 0.
+void check_cylinder(double thickness) {
   const double radius = 90e-6;
-  for (const double thickness : {50e-6, 20e-6}) {
-    const int target = 5000;
-    const auto start = std::chrono::steady_clock::now();
-    const Mesh m = mesh_cylinder(radius, thickness, target);
-    const double seconds =
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    expect_consistent(m);
-    const double exact = kPi * radius * radius * thickness;
-    // The lateral surface is inscribed facets: a deficit of ~(h / R)^2 / 12 ~ 0.1-0.3 %.
-    EXPECT_NEAR(mesh_volume(m), exact, 0.01 * exact);
-    EXPECT_NEAR(static_cast<double>(m.element_count()), target, 0.1 * target);
-    const double h = mean_edge(m);
-    std::size_t rim = 0, mid_plane = 0;
-    for (std::size_t i = 0; i < m.node_count(); ++i) {
-      const double r = std::hypot(m.x[i], m.y[i]);
-      EXPECT_LE(r, radius * (1 + 1e-9));
-      EXPECT_LE(std::abs(m.z[i]), 0.5 * thickness * (1 + 1e-9));
-      if (std::abs(m.z[i]) > 0.01 * h) continue;
-      // Near the mid-plane: on it exactly, to the geometry's tolerance.
-      EXPECT_LT(std::abs(m.z[i]), 1e-9 * radius);
-      ++mid_plane;
-      if (r > radius - 0.01 * h) {
-        EXPECT_NEAR(r, radius, 1e-9 * radius);
-        ++rim;
-      }
-    }
-    std::cout << "cylinder H = " << thickness << ": " << m.element_count() << " tetrahedra for "
-              << target << ", h = " << h / radius << " R, " << rim
-              << " rim nodes at z = 0 (2 pi R / h = " << 2 * kPi * radius / h << "), " << mid_plane
-              << " nodes in the mid-plane, " << seconds << " s\n";
-    EXPECT_GE(static_cast<double>(rim), kPi * radius / h);
-    EXPECT_GT(mid_plane, rim);  // the mid-plane is meshed inside too: an interface
-    // It is an interface, not a boundary: no boundary face lies in it.
-    for (const auto& f : m.boundary_faces) {
-      EXPECT_FALSE(std::abs(m.z[f[0]]) < 1e-9 * radius && std::abs(m.z[f[1]]) < 1e-9 * radius &&
-                   std::abs(m.z[f[2]]) < 1e-9 * radius);
+  const int target = 5000;
+  const auto start = std::chrono::steady_clock::now();
+  const Mesh m = mesh_cylinder(radius, thickness, target);
+  const double seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  expect_consistent(m);
+  const double exact = kPi * radius * radius * thickness;
+  // The lateral surface is inscribed facets: chords of length h miss ~(h / R)^2 / 6 of the
+  // area, 0.1-0.4 % here (measured -0.21 % and -0.12 %).
+  EXPECT_NEAR(mesh_volume(m), exact, 0.01 * exact);
+  EXPECT_NEAR(static_cast<double>(m.element_count()), target, 0.1 * target);
+  const double h = mean_edge(m);
+  std::size_t rim = 0, mid_plane = 0;
+  for (std::size_t i = 0; i < m.node_count(); ++i) {
+    const double r = std::hypot(m.x[i], m.y[i]);
+    EXPECT_LE(r, radius * (1 + 1e-9));
+    EXPECT_LE(std::abs(m.z[i]), 0.5 * thickness * (1 + 1e-9));
+    if (std::abs(m.z[i]) > 0.01 * h) continue;
+    // Near the mid-plane: on it exactly, to the geometry's tolerance.
+    EXPECT_LT(std::abs(m.z[i]), 1e-9 * radius);
+    ++mid_plane;
+    if (r > radius - 0.01 * h) {
+      EXPECT_NEAR(r, radius, 1e-9 * radius);
+      ++rim;
     }
   }
+  std::cout << "cylinder H = " << thickness << ": " << m.element_count() << " tetrahedra for "
+            << target << ", h = " << h / radius << " R, " << rim
+            << " rim nodes at z = 0 (2 pi R / h = " << 2 * kPi * radius / h << "), " << mid_plane
+            << " nodes in the mid-plane, " << seconds << " s\n";
+  EXPECT_GE(static_cast<double>(rim), kPi * radius / h);
+  EXPECT_GT(mid_plane, rim);  // the mid-plane is meshed inside too: an interface
+  // It is an interface, not a boundary: no boundary face lies in it.
+  for (const auto& f : m.boundary_faces) {
+    EXPECT_FALSE(std::abs(m.z[f[0]]) < 1e-9 * radius && std::abs(m.z[f[1]]) < 1e-9 * radius &&
+                 std::abs(m.z[f[2]]) < 1e-9 * radius);
+  }
+}
+
+TEST(CylinderMesh, ThickDiskVolumeCountAndMidPlaneRim) {
+  check_cylinder(50e-6);
+}
+TEST(CylinderMesh, ThinDiskVolumeCountAndMidPlaneRim) {
+  check_cylinder(20e-6);
 }
 
 TEST(CylinderMesh, ReproducibleAndArgumentsChecked) {
