@@ -125,6 +125,23 @@ Mesh mesh_rounded_square(double side_m, double corner_radius_m, int target_eleme
   return call(r);
 }
 
+Mesh mesh_cylinder(double radius_m, double thickness_m, int target_elements) {
+  gp::Request r;
+  r.shape = gp::Shape::kCylinder;
+  r.size_m = radius_m;
+  r.thickness_m = thickness_m;
+  r.target_elements = target_elements;
+  return call(r);
+}
+
+Mesh mesh_sphere(double radius_m, int target_elements) {
+  gp::Request r;
+  r.shape = gp::Shape::kSphere;
+  r.size_m = radius_m;
+  r.target_elements = target_elements;
+  return call(r);
+}
+
 Mesh read_gmsh_file(const std::string& path) {
   gp::Request r;
   r.shape = gp::Shape::kFile;

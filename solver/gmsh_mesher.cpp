@@ -1,4 +1,5 @@
-// Disk and rounded-square meshes, and .msh reading, through Gmsh's C++ API (Gmsh 4.8).
+// Disk and rounded-square meshes (triangles), cylinder and sphere meshes (tetrahedra), and .msh
+// reading, through Gmsh's C++ API (Gmsh 4.8).
 //
 // Gmsh is a process-wide singleton with global options and a global model, so every use here
 // holds one mutex for the whole initialize .. finalize span. Each call starts from a fresh
@@ -28,6 +29,7 @@
 #include <limits>
 #include <mutex>
 #include <numbers>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <system_error>
@@ -41,10 +43,22 @@ namespace softshock {
 namespace {
 
 constexpr int kGmshTriangle3 = 2;                  // Gmsh element type: 3-node triangle
+constexpr int kGmshTetrahedron4 = 4;               // Gmsh element type: 4-node tetrahedron
 constexpr int kFrontalDelaunay2D = 6;              // Mesh.Algorithm value
+constexpr int kDelaunay3D = 1;                     // Mesh.Algorithm3D value (single-threaded)
 constexpr double kCountTolerance = 0.02;           // accept a pass within 2 % of the target count
 constexpr int kMaxMeshingPasses = 3;               // first estimate + up to two corrections
 constexpr double kMinCornerRadiusFraction = 1e-5;  // of the side; see mesh_rounded_square
+// 3-D: the count is noisier in h (it jumps as a thin body gains a layer of elements), so more
+// passes are allowed; small meshes need them, and cost little.
+constexpr double kTetCountTolerance = 0.03;
+constexpr int kMaxTetMeshingPasses = 5;
+// Gmsh's 3-D Delaunay mesh of uniform size h has ~0.55 times as many tetrahedra as regular
+// tetrahedra of side h (volume h^3 / (6 sqrt 2)) would need to fill the body (its tetrahedra
+// are larger on average): measured 0.53-0.60 on cylinders (R = 90 um, H = 20 and 50 um) and
+// spheres at 100k-400k elements; more where the boundary weighs (0.66 at 20k, H = 20 um).
+constexpr double kDelaunayTetsPerRegularTet = 0.55;
+constexpr double kMinThicknessRatio = 1e-5;  // of the radius; see mesh_cylinder
 
 std::mutex& gmsh_mutex() {
   static std::mutex mutex;  // function-local: constructed on first use, no init-order issues
@@ -97,12 +111,19 @@ class GmshSession {
   std::lock_guard<std::mutex> lock_;  // first member: locked before initialize, freed after
 };
 
-// The 3-node triangles of the current Gmsh model (all entities), with nodes renumbered
-// 0..N-1 in increasing Gmsh tag order and only the nodes the triangles use. Coordinates are
-// multiplied by `scale`; z is dropped. Not finalized.
-Mesh extract_triangles(double scale) {
+// The elements of one type (3-node triangles or 4-node tetrahedra) of the current Gmsh model
+// (all entities), with nodes renumbered 0..N-1 in increasing Gmsh tag order and only the nodes
+// the elements use. Coordinates are multiplied by `scale`; z is kept for tetrahedra and dropped
+// for triangles. Not finalized.
+Mesh extract_elements(int gmsh_type, double scale) {
+  const bool tetrahedra = gmsh_type == kGmshTetrahedron4;
+  const std::size_t nodes_per_element = tetrahedra ? 4 : 3;
   std::vector<std::size_t> element_tags, element_nodes;
-  gmsh::model::mesh::getElementsByType(kGmshTriangle3, element_tags, element_nodes);
+  gmsh::model::mesh::getElementsByType(gmsh_type, element_tags, element_nodes);
+  if (element_nodes.size() != nodes_per_element * element_tags.size()) {
+    throw std::runtime_error("Gmsh returned " + std::to_string(element_nodes.size()) +
+                             " node tags for " + std::to_string(element_tags.size()) + " elements");
+  }
   std::vector<std::size_t> node_tags;
   std::vector<double> coords, parametric;
   gmsh::model::mesh::getNodes(node_tags, coords, parametric, -1, -1,
@@ -121,29 +142,48 @@ Mesh extract_triangles(double scale) {
   Mesh mesh;
   mesh.x.resize(used.size());
   mesh.y.resize(used.size());
+  if (tetrahedra) mesh.z.resize(used.size());
   for (std::size_t n = 0; n < used.size(); ++n) {
     const auto found = position_of_tag.find(used[n]);
     if (found == position_of_tag.end()) {
-      throw std::runtime_error("a triangle refers to node " + std::to_string(used[n]) +
+      throw std::runtime_error(std::string(tetrahedra ? "a tetrahedron" : "a triangle") +
+                               " refers to node " + std::to_string(used[n]) +
                                ", which has no coordinates");
     }
     mesh.x[n] = coords[3 * found->second] * scale;
     mesh.y[n] = coords[3 * found->second + 1] * scale;
+    if (tetrahedra) mesh.z[n] = coords[3 * found->second + 2] * scale;
   }
   auto index_of = [&](std::size_t tag) {
     return static_cast<int32_t>(std::lower_bound(used.begin(), used.end(), tag) - used.begin());
   };
-  mesh.triangles.resize(element_tags.size());
-  for (std::size_t t = 0; t < element_tags.size(); ++t) {
-    for (int k = 0; k < 3; ++k) mesh.triangles[t][k] = index_of(element_nodes[3 * t + k]);
+  if (tetrahedra) {
+    mesh.tetrahedra.resize(element_tags.size());
+    for (std::size_t t = 0; t < element_tags.size(); ++t) {
+      for (int k = 0; k < 4; ++k) mesh.tetrahedra[t][k] = index_of(element_nodes[4 * t + k]);
+    }
+  } else {
+    mesh.triangles.resize(element_tags.size());
+    for (std::size_t t = 0; t < element_tags.size(); ++t) {
+      for (int k = 0; k < 3; ++k) mesh.triangles[t][k] = index_of(element_nodes[3 * t + k]);
+    }
   }
   return mesh;
 }
 
-std::size_t triangle_count() {
+std::size_t element_count(int gmsh_type) {
   std::vector<std::size_t> element_tags, element_nodes;
-  gmsh::model::mesh::getElementsByType(kGmshTriangle3, element_tags, element_nodes);
+  gmsh::model::mesh::getElementsByType(gmsh_type, element_tags, element_nodes);
   return element_tags.size();
+}
+
+// Uniform size: not from the geometry's points, nor refined by curvature (a circle's resolution
+// follows from h alone), nor carried in from boundary discretisation.
+void set_uniform_size_options() {
+  gmsh::option::setNumber("Mesh.MeshSizeFromPoints", 0);
+  gmsh::option::setNumber("Mesh.MeshSizeFromCurvature", 0);
+  gmsh::option::setNumber("Mesh.MeshSizeExtendFromBoundary", 0);
+  gmsh::option::setNumber("Mesh.ElementOrder", 1);
 }
 
 // Meshes the synchronized 2D model (of the given normalised area) with about target_elements
@@ -155,12 +195,7 @@ std::size_t triangle_count() {
 // by sqrt(N_got / N_target) (N ~ 1/h^2) and the surface re-meshed; the closest pass wins.
 Mesh mesh_to_target_count(double normalised_area, int target_elements, double scale) {
   gmsh::option::setNumber("Mesh.Algorithm", kFrontalDelaunay2D);
-  // Uniform size: not from the geometry's points, nor refined by curvature (the circle's
-  // resolution follows from h alone), nor carried in from boundary discretisation.
-  gmsh::option::setNumber("Mesh.MeshSizeFromPoints", 0);
-  gmsh::option::setNumber("Mesh.MeshSizeFromCurvature", 0);
-  gmsh::option::setNumber("Mesh.MeshSizeExtendFromBoundary", 0);
-  gmsh::option::setNumber("Mesh.ElementOrder", 1);
+  set_uniform_size_options();
 
   const double target = target_elements;
   double h = std::sqrt(4.0 * normalised_area / (std::sqrt(3.0) * target));
@@ -171,15 +206,65 @@ Mesh mesh_to_target_count(double normalised_area, int target_elements, double sc
     gmsh::option::setNumber("Mesh.MeshSizeMin", h);
     gmsh::option::setNumber("Mesh.MeshSizeMax", h);
     gmsh::model::mesh::generate(2);
-    const auto count = static_cast<double>(triangle_count());
+    const auto count = static_cast<double>(element_count(kGmshTriangle3));
     if (count == 0.0) throw std::runtime_error("Gmsh produced no triangles");
     const double miss = std::abs(count - target) / target;
     if (miss < best_miss) {
-      best = extract_triangles(scale);
+      best = extract_elements(kGmshTriangle3, scale);
       best_miss = miss;
     }
     if (miss <= kCountTolerance) break;
     h *= std::sqrt(count / target);
+  }
+  return best;
+}
+
+// Meshes the synchronized 3-D model (of the given normalised volume) with about
+// target_elements tetrahedra and returns the mesh scaled by `scale`.
+//
+// The first size is the calibrated estimate h^3 = 6 sqrt(2) V kDelaunayTetsPerRegularTet / N.
+// A pass that misses by more than kTetCountTolerance is followed by one at a corrected size:
+// h scaled by (N_got / N_target)^(1/3) (N ~ 1/h^3) until passes on both sides of the target
+// exist, then interpolated between the closest two in log N - log h (the count is not quite a
+// power of h when a thin body holds a few layers). The closest pass wins.
+Mesh mesh_3d_to_target_count(double normalised_volume, int target_elements, double scale) {
+  gmsh::option::setNumber("Mesh.Algorithm", kFrontalDelaunay2D);  // the bounding surfaces
+  gmsh::option::setNumber("Mesh.Algorithm3D", kDelaunay3D);
+  set_uniform_size_options();
+
+  const double target = target_elements;
+  double h = std::cbrt(6.0 * std::numbers::sqrt2 * normalised_volume * kDelaunayTetsPerRegularTet /
+                       target);
+  struct Pass {
+    double h, count;
+  };
+  std::optional<Pass> too_many, too_few;  // the closest passes on either side of the target
+  Mesh best;
+  double best_miss = std::numeric_limits<double>::infinity();
+  for (int pass = 0; pass < kMaxTetMeshingPasses; ++pass) {
+    gmsh::model::mesh::clear();
+    gmsh::option::setNumber("Mesh.MeshSizeMin", h);
+    gmsh::option::setNumber("Mesh.MeshSizeMax", h);
+    gmsh::model::mesh::generate(3);
+    const auto count = static_cast<double>(element_count(kGmshTetrahedron4));
+    if (count == 0.0) throw std::runtime_error("Gmsh produced no tetrahedra");
+    const double miss = std::abs(count - target) / target;
+    if (miss < best_miss) {
+      best = extract_elements(kGmshTetrahedron4, scale);
+      best_miss = miss;
+    }
+    if (miss <= kTetCountTolerance) break;
+    // Larger h means fewer elements: the closest sizes either side are the largest h with too
+    // many and the smallest h with too few.
+    if (count > target && (!too_many || h > too_many->h)) too_many = Pass{h, count};
+    if (count < target && (!too_few || h < too_few->h)) too_few = Pass{h, count};
+    if (too_many && too_few) {
+      const double f =
+          std::log(target / too_many->count) / std::log(too_few->count / too_many->count);
+      h = too_many->h * std::pow(too_few->h / too_many->h, f);
+    } else {
+      h *= std::cbrt(count / target);
+    }
   }
   return best;
 }
@@ -283,6 +368,66 @@ Mesh mesh_rounded_square(double side_m, double corner_radius_m, int target_eleme
   return mesh;
 }
 
+// The body is two half-cylinders glued at z = 0 (OCC's fragment makes their common disk one
+// shared face), so the mid-plane is meshed as an interface: its rim, the circle r = R, z = 0,
+// is a mesh curve carrying ~2 pi R / h nodes, where the solver reads the mid-plane rim.
+Mesh mesh_cylinder(double radius_m, double thickness_m, int target_elements) {
+  if (!(radius_m > 0.0) || !std::isfinite(radius_m)) {
+    throw std::invalid_argument("mesh_cylinder: radius must be positive and finite");
+  }
+  if (!(thickness_m > 0.0) || !std::isfinite(thickness_m)) {
+    throw std::invalid_argument("mesh_cylinder: thickness must be positive and finite");
+  }
+  check_target("mesh_cylinder", target_elements);
+  const double t = thickness_m / radius_m;  // normalised to unit radius
+  // OpenCASCADE's absolute tolerance is 1e-7 in these unit-radius coordinates; a much thinner
+  // (or, relative to the height, much narrower) cylinder would fall below it.
+  if (!(t >= kMinThicknessRatio) || !(t <= 1.0 / kMinThicknessRatio)) {
+    throw std::invalid_argument(
+        "mesh_cylinder: thickness must be within 1e-5 to 1e5 times the radius, got " +
+        std::to_string(thickness_m) + " for radius " + std::to_string(radius_m));
+  }
+  Mesh mesh;
+  {
+    GmshSession session;
+    try {
+      gmsh::model::add("cylinder");
+      const int lower = gmsh::model::occ::addCylinder(0.0, 0.0, -0.5 * t, 0.0, 0.0, 0.5 * t, 1.0);
+      const int upper = gmsh::model::occ::addCylinder(0.0, 0.0, 0.0, 0.0, 0.0, 0.5 * t, 1.0);
+      gmsh::vectorpair pieces;
+      std::vector<gmsh::vectorpair> piece_map;
+      gmsh::model::occ::fragment({{3, lower}}, {{3, upper}}, pieces, piece_map);
+      gmsh::model::occ::synchronize();
+      mesh = mesh_3d_to_target_count(std::numbers::pi * t, target_elements, radius_m);
+    } catch (...) {
+      throw std::runtime_error("mesh_cylinder: Gmsh failed: " + describe_current_exception());
+    }
+  }
+  sort_for_locality(mesh);  // finalizes too
+  return mesh;
+}
+
+Mesh mesh_sphere(double radius_m, int target_elements) {
+  if (!(radius_m > 0.0) || !std::isfinite(radius_m)) {
+    throw std::invalid_argument("mesh_sphere: radius must be positive and finite");
+  }
+  check_target("mesh_sphere", target_elements);
+  Mesh mesh;
+  {
+    GmshSession session;
+    try {
+      gmsh::model::add("sphere");
+      gmsh::model::occ::addSphere(0.0, 0.0, 0.0, 1.0);  // unit radius, scaled below
+      gmsh::model::occ::synchronize();
+      mesh = mesh_3d_to_target_count(4.0 / 3.0 * std::numbers::pi, target_elements, radius_m);
+    } catch (...) {
+      throw std::runtime_error("mesh_sphere: Gmsh failed: " + describe_current_exception());
+    }
+  }
+  sort_for_locality(mesh);  // finalizes too
+  return mesh;
+}
+
 Mesh read_gmsh_file(const std::string& path) {
   const std::string context = "read_gmsh_file: '" + path + "': ";
   try {
@@ -309,7 +454,13 @@ Mesh read_gmsh_file(const std::string& path) {
       try {
         // merge (unlike open) reports a missing file instead of starting a new model.
         gmsh::merge(copy.string());
-        mesh = extract_triangles(1.0);  // MSH coordinates are taken as metres
+        // Tetrahedra make it a 3-D mesh (whatever triangles bound them); otherwise the
+        // triangles make a 2-D one. MSH coordinates are taken as metres.
+        std::vector<int> types;
+        gmsh::model::mesh::getElementTypes(types);
+        const bool has_tetrahedra =
+            std::find(types.begin(), types.end(), kGmshTetrahedron4) != types.end();
+        mesh = extract_elements(has_tetrahedra ? kGmshTetrahedron4 : kGmshTriangle3, 1.0);
       } catch (...) {
         // Gmsh's messages name the copy; name the caller's file instead.
         std::string message = describe_current_exception();
@@ -320,8 +471,10 @@ Mesh read_gmsh_file(const std::string& path) {
         throw std::runtime_error("Gmsh: " + message);
       }
     }
-    if (mesh.triangles.empty()) throw std::runtime_error("contains no 3-node triangles");
-    finalize_mesh(mesh);
+    if (mesh.triangles.empty() && mesh.tetrahedra.empty()) {
+      throw std::runtime_error("contains no 3-node triangles or 4-node tetrahedra");
+    }
+    finalize_mesh(mesh);  // 2-D or 3-D, as extracted
     return mesh;
   } catch (const std::exception& e) {
     throw std::runtime_error(context + e.what());

@@ -28,6 +28,13 @@ extern "C" __attribute__((visibility("default"))) int softshock_gmsh_mesher_mesh
         *out = softshock::mesh_rounded_square(request->size_m, request->corner_radius_m,
                                               request->target_elements);
         return gp::kOk;
+      case gp::Shape::kCylinder:
+        *out = softshock::mesh_cylinder(request->size_m, request->thickness_m,
+                                        request->target_elements);
+        return gp::kOk;
+      case gp::Shape::kSphere:
+        *out = softshock::mesh_sphere(request->size_m, request->target_elements);
+        return gp::kOk;
       case gp::Shape::kFile:
         *out = softshock::read_gmsh_file(request->path ? request->path : "");
         return gp::kOk;

@@ -11,17 +11,18 @@
 
 namespace softshock::gmsh_plugin {
 
-constexpr int kAbiVersion = 2;
+constexpr int kAbiVersion = 3;  // 3: cylinders and spheres, Request::thickness_m
 constexpr const char* kModuleName = "libsoftshock_gmsh_mesher.so";
 constexpr const char* kAbiSymbol = "softshock_gmsh_mesher_abi";    // AbiFn
 constexpr const char* kMeshSymbol = "softshock_gmsh_mesher_mesh";  // MeshFn
 
-enum class Shape : int { kDisk = 1, kRoundedSquare = 2, kFile = 3 };
+enum class Shape : int { kDisk = 1, kRoundedSquare = 2, kFile = 3, kCylinder = 4, kSphere = 5 };
 
 struct Request {
   Shape shape = Shape::kDisk;
-  double size_m = 0;           // disk radius or square side
+  double size_m = 0;           // disk, cylinder or sphere radius, or square side
   double corner_radius_m = 0;  // rounded square only
+  double thickness_m = 0;      // cylinder only
   int target_elements = 0;
   const char* path = nullptr;  // kFile only
 };

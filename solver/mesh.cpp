@@ -239,6 +239,10 @@ double loop_signed_area(const Mesh& mesh, const std::vector<int32_t>& loop) {
 }  // namespace
 
 void finalize_mesh(Mesh& mesh) {
+  if (mesh.dimension() == 3) {  // tetrahedra: tet_mesh.cpp
+    finalize_tet_mesh(mesh);
+    return;
+  }
   const double mesh_scale = check_nodes_and_indices(mesh);
   orient_counter_clockwise(mesh, mesh_scale);
   const std::vector<DirectedEdge> edges = find_boundary_edges(mesh);
@@ -300,6 +304,10 @@ uint32_t interleave(uint32_t i, uint32_t j) {
 }  // namespace
 
 void sort_for_locality(Mesh& mesh) {
+  if (mesh.dimension() == 3) {  // tetrahedra: tet_mesh.cpp
+    sort_tet_mesh_for_locality(mesh);
+    return;
+  }
   const std::size_t nn = mesh.node_count(), ne = mesh.element_count();
   if (nn == 0) return;
   const auto [xmin, xmax] = std::minmax_element(mesh.x.begin(), mesh.x.end());

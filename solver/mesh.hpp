@@ -57,7 +57,9 @@ Mesh make_box_mesh(double lx, double ly, double lz, int nx, int ny, int nz);
 
 // The box 0 <= x <= lx, 0 <= y <= ly, 0 <= z <= lz + amplitude cos(kx x) cos(ky y) (the 3-D
 // planar Richtmyer-Meshkov target): make_box_mesh with about target_elements tetrahedra of
-// aspect ~1, stretched in z so its top follows the corrugation exactly. Finalized.
+// aspect ~1, stretched in z so its top follows the corrugation exactly (at the nodes; linear
+// between them). Requires |amplitude| < lz / 2; no tetrahedron turns over, however steep the
+// corrugation. Morton-sorted (sort_for_locality) and finalized.
 Mesh make_corrugated_box_mesh(double lx, double ly, double lz, double amplitude, double kx,
                               double ky, int target_elements);
 

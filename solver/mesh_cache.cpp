@@ -30,8 +30,8 @@ constexpr char kMagic[8] = {'S', 'S', 'M', 'E', 'S', 'H', '\0', '\1'};
 // Bump kFormatVersion when the entry layout changes, kMesherRevision when the meshes themselves
 // would change for the same geometry (gmsh_mesher.cpp's algorithm, ring_mesher.cpp,
 // sort_for_locality) -- and then run_summary.hpp's kSolverRevision too: the results change.
-constexpr std::uint32_t kFormatVersion = 1;
-constexpr int kMesherRevision = 2;  // 2: ring_mesher.cpp's hexagonal centre
+constexpr std::uint32_t kFormatVersion = 2;  // 2: z, tetrahedra and boundary faces (3-D)
+constexpr int kMesherRevision = 2;           // 2: ring_mesher.cpp's hexagonal centre
 constexpr const char* kSuffix = ".mesh";
 constexpr const char* kTmpMarker = ".tmp.";
 constexpr int kLockStripes = 64;  // lock files, never removed: a bounded set
@@ -70,11 +70,14 @@ struct Header {
   std::uint32_t format_version;
   std::uint32_t material_bytes;
   std::uint64_t nodes, triangles, boundary_edges, boundary_nodes;
+  std::uint64_t z_nodes, tetrahedra, boundary_faces;  // 3-D; 0 in a 2-D entry
 };
 
+// Empty arrays (a 2-D mesh's 3-D ones, and the reverse) may have a null data(): skipped, as
+// memcpy from or to null is undefined even for zero bytes.
 template <typename T>
 void append(std::string& out, const std::vector<T>& v) {
-  out.append(reinterpret_cast<const char*>(v.data()), v.size() * sizeof(T));
+  if (!v.empty()) out.append(reinterpret_cast<const char*>(v.data()), v.size() * sizeof(T));
 }
 
 std::string serialize(const std::string& material, const Mesh& mesh) {
@@ -86,6 +89,9 @@ std::string serialize(const std::string& material, const Mesh& mesh) {
   h.triangles = mesh.triangles.size();
   h.boundary_edges = mesh.boundary_edges.size();
   h.boundary_nodes = mesh.boundary_nodes.size();
+  h.z_nodes = mesh.z.size();
+  h.tetrahedra = mesh.tetrahedra.size();
+  h.boundary_faces = mesh.boundary_faces.size();
   std::string out(reinterpret_cast<const char*>(&h), sizeof h);
   out += material;
   append(out, mesh.x);
@@ -93,6 +99,9 @@ std::string serialize(const std::string& material, const Mesh& mesh) {
   append(out, mesh.triangles);
   append(out, mesh.boundary_edges);
   append(out, mesh.boundary_nodes);
+  append(out, mesh.z);
+  append(out, mesh.tetrahedra);
+  append(out, mesh.boundary_faces);
   const std::uint64_t sum = hash64(out, 0);
   out.append(reinterpret_cast<const char*>(&sum), sizeof sum);
   return out;
@@ -107,6 +116,7 @@ std::uint64_t bytes_of(const std::vector<T>& v) {
 std::uint64_t entry_bytes(const Mesh& mesh, const std::string& material) {
   return sizeof(Header) + material.size() + bytes_of(mesh.x) + bytes_of(mesh.y) +
          bytes_of(mesh.triangles) + bytes_of(mesh.boundary_edges) + bytes_of(mesh.boundary_nodes) +
+         bytes_of(mesh.z) + bytes_of(mesh.tetrahedra) + bytes_of(mesh.boundary_faces) +
          sizeof(std::uint64_t);
 }
 
@@ -114,6 +124,7 @@ template <typename T>
 bool take(std::string_view& in, std::vector<T>& v, std::uint64_t count) {
   if (count > in.size() / sizeof(T)) return false;
   v.resize(count);
+  if (count == 0) return true;  // data() may be null; see append()
   std::memcpy(v.data(), in.data(), count * sizeof(T));
   in.remove_prefix(count * sizeof(T));
   return true;
@@ -137,9 +148,18 @@ std::optional<Mesh> deserialize(std::string_view bytes, const std::string& mater
   Mesh m;
   if (!take(in, m.x, h.nodes) || !take(in, m.y, h.nodes) || !take(in, m.triangles, h.triangles) ||
       !take(in, m.boundary_edges, h.boundary_edges) ||
-      !take(in, m.boundary_nodes, h.boundary_nodes) || !in.empty() || m.triangles.empty()) {
+      !take(in, m.boundary_nodes, h.boundary_nodes) || !take(in, m.z, h.z_nodes) ||
+      !take(in, m.tetrahedra, h.tetrahedra) || !take(in, m.boundary_faces, h.boundary_faces) ||
+      !in.empty()) {
     return std::nullopt;
   }
+  // A mesh is 2-D (triangles, no z, no 3-D arrays) or 3-D (tetrahedra with z for every node,
+  // no 2-D arrays); anything else is not one the solver can take.
+  const bool two_d =
+      !m.triangles.empty() && m.z.empty() && m.tetrahedra.empty() && m.boundary_faces.empty();
+  const bool three_d = !m.tetrahedra.empty() && m.z.size() == h.nodes && m.triangles.empty() &&
+                       m.boundary_edges.empty() && m.boundary_nodes.empty();
+  if (!two_d && !three_d) return std::nullopt;
   // The solver indexes with these unchecked: a bad index must not get through.
   const auto n = static_cast<std::int64_t>(h.nodes);
   auto in_range = [n](std::int32_t i) { return i >= 0 && i < n; };
@@ -148,6 +168,10 @@ std::optional<Mesh> deserialize(std::string_view bytes, const std::string& mater
   for (const auto& e : m.boundary_edges)
     if (!std::all_of(e.begin(), e.end(), in_range)) return std::nullopt;
   if (!std::all_of(m.boundary_nodes.begin(), m.boundary_nodes.end(), in_range)) return std::nullopt;
+  for (const auto& t : m.tetrahedra)
+    if (!std::all_of(t.begin(), t.end(), in_range)) return std::nullopt;
+  for (const auto& f : m.boundary_faces)
+    if (!std::all_of(f.begin(), f.end(), in_range)) return std::nullopt;
   return m;
 }
 

@@ -145,7 +145,7 @@ int check_mesh_file(const std::string& path, int max_elements) {
   auto& f = *s.mutable_fields();
   f["nodes"].set_number_value(static_cast<double>(mesh.node_count()));
   f["elements"].set_number_value(static_cast<double>(mesh.element_count()));
-  f["dimension"].set_number_value(2);
+  f["dimension"].set_number_value(mesh.dimension());  // 3 for a file of tetrahedra
   std::string out;
   (void)google::protobuf::util::MessageToJsonString(s, &out);
   std::cout << out << std::endl;
