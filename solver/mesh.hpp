@@ -63,6 +63,13 @@ Mesh make_box_mesh(double lx, double ly, double lz, int nx, int ny, int nz);
 Mesh make_corrugated_box_mesh(double lx, double ly, double lz, double amplitude, double kx,
                               double ky, int target_elements);
 
+// The 2-D mesh `base` extruded along z from z_bottom to z_top in `layers` layers of prisms, each
+// split into three tetrahedra by its vertices' order in `base` (every vertical face then takes the
+// diagonal from the lower-numbered vertex's top to the other's bottom, so neighbouring prisms
+// agree). Layer k's nodes are base's at z_bottom + k (z_top - z_bottom) / layers, numbered
+// k * N + i. Finalized, not sorted.
+Mesh extrude_mesh(const Mesh& base, double z_bottom, double z_top, int layers);
+
 // Volume-weighted centroid and total volume of a 3-D mesh.
 std::array<double, 3> tet_mesh_centroid(const Mesh& mesh);
 double mesh_volume(const Mesh& mesh);

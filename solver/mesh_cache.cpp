@@ -394,10 +394,14 @@ std::optional<std::string> deterministic_bytes(const v1::Geometry& geometry) {
 std::optional<std::string> mesh_key_material(const v1::Geometry& geometry) {
   // A mesh file is read, not meshed, and its content may change under the same name.
   if (geometry.shape_case() != v1::Geometry::kDisk &&
-      geometry.shape_case() != v1::Geometry::kRoundedSquare) {
+      geometry.shape_case() != v1::Geometry::kRoundedSquare &&
+      geometry.shape_case() != v1::Geometry::kCylinder) {
     return std::nullopt;
   }
-  const auto serialized = deterministic_bytes(geometry);
+  // A cylinder's faces are boundary conditions, not geometry: one mesh serves all three.
+  v1::Geometry keyed = geometry;
+  if (keyed.has_cylinder()) keyed.mutable_cylinder()->clear_faces();
+  const auto serialized = deterministic_bytes(keyed);
   if (!serialized) return std::nullopt;
   return "softshock-mesh format=" + std::to_string(kFormatVersion) +
          " mesher=" + std::to_string(kMesherRevision) + " gmsh=" + gmsh_version() + "\n" +

@@ -105,3 +105,31 @@ Mesh mesh_disk_rings(double radius_m, int target_elements) {
 }
 
 }  // namespace softshock
+
+namespace softshock {
+
+Mesh mesh_cylinder_rings(double radius_m, double thickness_m, int target_elements) {
+  if (!(radius_m > 0.0) || !std::isfinite(radius_m) || !(thickness_m > 0.0) ||
+      !std::isfinite(thickness_m))
+    throw std::invalid_argument("mesh_cylinder_rings: radius and thickness must be positive");
+  if (target_elements < 36)
+    throw std::invalid_argument("mesh_cylinder_rings: target_elements must be >= 36, got " +
+                                std::to_string(target_elements));
+  // K rings hold ~ pi sqrt(3) K^2 triangles with node spacing s = 2 R / (sqrt(3) K) along them;
+  // layers of height ~ s make prisms of aspect ~1: L = H / s = H K / (s K). With T = 3 L pi
+  // sqrt(3) K^2 tetrahedra, K^3 = T (s K) / (3 pi sqrt(3) H). L is then rounded to an even number
+  // (the mid-plane is a layer), at least 2, and the triangles per layer follow from T.
+  const double per_ring_sq = std::numbers::pi * std::sqrt(3.0);
+  const double spacing_per_k = 2.0 * radius_m / std::sqrt(3.0);  // s K
+  const double k_cubed = target_elements * spacing_per_k / (3.0 * per_ring_sq * thickness_m);
+  const double layers_exact = thickness_m * std::cbrt(k_cubed) / spacing_per_k;
+  const int layers = std::max(2, 2 * static_cast<int>(std::lround(0.5 * layers_exact)));
+  const int per_layer =
+      std::max(6, static_cast<int>(std::lround(target_elements / (3.0 * layers))));
+  Mesh mesh = extrude_mesh(mesh_disk_rings(radius_m, per_layer), -0.5 * thickness_m,
+                           0.5 * thickness_m, layers);
+  sort_for_locality(mesh);
+  return mesh;
+}
+
+}  // namespace softshock

@@ -14,4 +14,11 @@ namespace softshock {
 // Deterministic; Morton-ordered and finalized.
 Mesh mesh_disk_rings(double radius_m, int target_elements);
 
+// The cylinder r <= radius, -thickness/2 <= z <= thickness/2 in about target_elements
+// tetrahedra: mesh_disk_rings' disk extruded in an even number of layers (the mid-plane z = 0 is
+// one of them, its rim the disk's) of prisms of aspect ~1, three tetrahedra each. Thin layers stay
+// well shaped (Delaunay tetrahedra of a thin layer had slivers of aspect ratio 14-56 at 100k,
+// measured), and the mesh of each layer is the 2-D default's. Morton-ordered and finalized.
+Mesh mesh_cylinder_rings(double radius_m, double thickness_m, int target_elements);
+
 }  // namespace softshock

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <numbers>
 #include <sstream>
 
 #include "gmsh_mesher.hpp"
@@ -29,6 +30,9 @@ constexpr double kElementWeight = Element{}.element_weight,
 constexpr double kRoughness = 3e-4;
 constexpr int kRoughnessMinMode = 2, kRoughnessMaxMode = 16;
 constexpr double kStripWavelength = 10e-6, kStripHeight = 40e-6, kStripAmplitude = 50e-9;
+constexpr double kCylinderThickness = 50e-6;  // the experiments' gel layer
+constexpr double kBoxLx = 20e-6, kBoxLy = 20e-6, kBoxLz = 40e-6, kBoxAmplitude = 50e-9;
+constexpr double kBoxKx = 2.0 * std::numbers::pi / 10e-6, kBoxKy = 2.0 * std::numbers::pi / 20e-6;
 constexpr double kPressure = 2e9, kDuration = 8e-9;
 // The run's defaults are the solver's own (model.hpp), as the element's are.
 constexpr double kEndTime = SolverOptions{}.end_time_s, kCfl = SolverOptions{}.cfl,
@@ -94,6 +98,69 @@ void set_up_corrugated_strip(const v1::Geometry& g, Problem& p) {
   p.reference_radius_m = c.height();
 }
 
+// The nodes of a 3-D mesh with |coordinate - value| <= tol.
+std::vector<uint8_t> nodes_at(const std::vector<double>& coordinate, double value, double tol) {
+  std::vector<uint8_t> out(coordinate.size(), 0);
+  for (std::size_t i = 0; i < coordinate.size(); ++i)
+    out[i] = std::fabs(coordinate[i] - value) <= tol ? 1 : 0;
+  return out;
+}
+
+// The cylinder: the pulse on the lateral surface (the boundary faces not on a face), the faces
+// held as asked; the rim diagnostics at the mid-plane z = 0.
+void set_up_cylinder(const v1::Geometry& g, Problem& p) {
+  const auto& c = g.cylinder();
+  const double half = 0.5 * c.thickness(), tol = 1e-9 * c.radius();
+  const std::vector<uint8_t> top = nodes_at(p.mesh.z, half, tol),
+                             bottom = nodes_at(p.mesh.z, -half, tol);
+  p.load_all_boundary = false;
+  for (const auto& f : p.mesh.boundary_faces) {
+    const bool on_top = top[f[0]] && top[f[1]] && top[f[2]];
+    const bool on_bottom = bottom[f[0]] && bottom[f[1]] && bottom[f[2]];
+    if (!on_top && !on_bottom) p.loaded_faces.push_back(f);
+  }
+  const std::size_t nn = p.mesh.node_count();
+  if (c.faces() != v1::FREE) {
+    p.fixed_z.assign(nn, 0);
+    if (c.faces() == v1::BONDED) p.fixed_x.assign(nn, 0), p.fixed_y.assign(nn, 0);
+    for (std::size_t i = 0; i < nn; ++i) {
+      if (!top[i] && !bottom[i]) continue;
+      p.fixed_z[i] = 1;
+      if (c.faces() == v1::BONDED) p.fixed_x[i] = 1, p.fixed_y[i] = 1;
+    }
+  }
+  p.origin = {0.0, 0.0};
+  p.reference_radius_m = c.radius();
+  p.mid_plane_z_m = 0.0;
+}
+
+// The corrugated box: sliding walls on its four sides, the pulse on z = 0, the top free. No rim.
+void set_up_corrugated_box(const v1::Geometry& g, Problem& p) {
+  const auto& b = g.corrugated_box();
+  const double tol = 1e-9 * std::min({b.lx(), b.ly(), b.lz()});
+  const std::size_t nn = p.mesh.node_count();
+  p.fixed_x.assign(nn, 0), p.fixed_y.assign(nn, 0);
+  for (std::size_t i = 0; i < nn; ++i) {
+    if (p.mesh.x[i] < tol || p.mesh.x[i] > b.lx() - tol) p.fixed_x[i] = 1;
+    if (p.mesh.y[i] < tol || p.mesh.y[i] > b.ly() - tol) p.fixed_y[i] = 1;
+  }
+  p.load_all_boundary = false;
+  for (const auto& f : p.mesh.boundary_faces)
+    if (p.mesh.z[f[0]] < tol && p.mesh.z[f[1]] < tol && p.mesh.z[f[2]] < tol)
+      p.loaded_faces.push_back(f);
+  p.origin = {0.5 * b.lx(), 0.5 * b.ly()};
+  p.reference_radius_m = b.lz();
+  p.mid_plane_z_m = 0.5 * b.lz();
+  p.rim_diagnostics = false;
+  p.center_region_radius_m = 0.1 * std::min({b.lx(), b.ly(), b.lz()});
+}
+
+// Whether kl is a positive or zero multiple of pi (a symmetry plane of cos(k x) at x = l).
+bool multiple_of_pi(double kl) {
+  const double m = kl / std::numbers::pi;
+  return kl >= 0 && std::fabs(m - std::round(m)) <= 1e-9 * std::max(1.0, m);
+}
+
 }  // namespace
 
 v1::RunSpec parse_spec_json(const std::string& json) {
@@ -142,13 +209,30 @@ v1::RunSpec with_defaults(const v1::RunSpec& in) {
       if (!c->has_amplitude()) c->set_amplitude(kStripAmplitude);
       break;
     }
+    case v1::Geometry::kCylinder: {
+      auto* c = g->mutable_cylinder();
+      if (!c->has_radius()) c->set_radius(kRadius);
+      if (!c->has_thickness()) c->set_thickness(kCylinderThickness);
+      if (c->faces() == v1::FACE_CONDITION_UNSPECIFIED) c->set_faces(v1::SLIDING);
+      break;
+    }
+    case v1::Geometry::kCorrugatedBox: {
+      auto* b = g->mutable_corrugated_box();
+      if (!b->has_lx()) b->set_lx(kBoxLx);
+      if (!b->has_ly()) b->set_ly(kBoxLy);
+      if (!b->has_lz()) b->set_lz(kBoxLz);
+      if (!b->has_amplitude()) b->set_amplitude(kBoxAmplitude);
+      if (!b->has_kx()) b->set_kx(kBoxKx);
+      if (!b->has_ky()) b->set_ky(kBoxKy);
+      break;
+    }
   }
   if (!g->has_target_elements()) g->set_target_elements(kTargetElements);
   if (g->mesher() == v1::MESHER_UNSPECIFIED)
-    g->set_mesher(g->has_disk() ? v1::CONCENTRIC_RINGS : v1::FRONTAL_DELAUNAY);
+    g->set_mesher(g->has_disk() || g->has_cylinder() ? v1::CONCENTRIC_RINGS : v1::FRONTAL_DELAUNAY);
   if (!g->has_mesh_rotation()) g->set_mesh_rotation(0.0);
   auto* rough = g->mutable_rim_roughness();
-  const bool star_shaped = g->has_disk() || g->has_rounded_square();
+  const bool star_shaped = g->has_disk() || g->has_rounded_square() || g->has_cylinder();
   if (!rough->has_amplitude()) rough->set_amplitude(star_shaped ? kRoughness : 0.0);
   if (!rough->has_min_mode()) rough->set_min_mode(kRoughnessMinMode);
   if (!rough->has_max_mode()) rough->set_max_mode(kRoughnessMaxMode);
@@ -220,14 +304,42 @@ void validate_spec(const v1::RunSpec& s, const SpecLimits& limits) {
               "must be finite with |amplitude| < height / 2");
       break;
     }
+    case v1::Geometry::kCylinder: {
+      const auto& c = g.cylinder();
+      require_finite_positive(c.radius(), "geometry.cylinder.radius");
+      require_finite_positive(c.thickness(), "geometry.cylinder.thickness");
+      require(c.thickness() <= 100 * c.radius() && c.radius() <= 1000 * c.thickness(),
+              "geometry.cylinder.thickness", "must be between radius / 1000 and 100 x radius");
+      require(v1::FaceCondition_IsValid(c.faces()) && c.faces() != v1::FACE_CONDITION_UNSPECIFIED,
+              "geometry.cylinder.faces", "must be SLIDING, BONDED or FREE");
+      break;
+    }
+    case v1::Geometry::kCorrugatedBox: {
+      const auto& b = g.corrugated_box();
+      require_finite_positive(b.lx(), "geometry.corrugated_box.lx");
+      require_finite_positive(b.ly(), "geometry.corrugated_box.ly");
+      require_finite_positive(b.lz(), "geometry.corrugated_box.lz");
+      require(std::isfinite(b.amplitude()) && std::fabs(b.amplitude()) < 0.5 * b.lz(),
+              "geometry.corrugated_box.amplitude", "must be finite with |amplitude| < lz / 2");
+      require(std::isfinite(b.kx()) && multiple_of_pi(b.kx() * b.lx()),
+              "geometry.corrugated_box.kx",
+              "must make kx lx a multiple of pi (>= 0): the sliding walls are the corrugation's "
+              "symmetry planes");
+      require(std::isfinite(b.ky()) && multiple_of_pi(b.ky() * b.ly()),
+              "geometry.corrugated_box.ky",
+              "must make ky ly a multiple of pi (>= 0): the sliding walls are the corrugation's "
+              "symmetry planes");
+      break;
+    }
     case v1::Geometry::SHAPE_NOT_SET:
       throw SpecError("geometry",
-                      "one of disk, rounded_square, mesh_file or corrugated_strip is required");
+                      "one of disk, rounded_square, mesh_file, corrugated_strip, cylinder or "
+                      "corrugated_box is required");
   }
   require(v1::Mesher_IsValid(g.mesher()) && g.mesher() != v1::MESHER_UNSPECIFIED, "geometry.mesher",
           "must be FRONTAL_DELAUNAY or CONCENTRIC_RINGS");
-  require(g.mesher() != v1::CONCENTRIC_RINGS || g.has_disk(), "geometry.mesher",
-          "CONCENTRIC_RINGS meshes disks only");
+  require(g.mesher() != v1::CONCENTRIC_RINGS || g.has_disk() || g.has_cylinder(), "geometry.mesher",
+          "CONCENTRIC_RINGS meshes disks and cylinders only");
   require(std::isfinite(g.mesh_rotation()) && std::fabs(g.mesh_rotation()) <= 8.0,
           "geometry.mesh_rotation", "must be a finite angle in [-8, 8] rad");
   require(g.mesh_rotation() == 0.0 || g.has_disk(), "geometry.mesh_rotation",
@@ -235,8 +347,9 @@ void validate_spec(const v1::RunSpec& s, const SpecLimits& limits) {
   const auto& rough = g.rim_roughness();
   require(std::isfinite(rough.amplitude()) && rough.amplitude() >= 0 && rough.amplitude() <= 0.02,
           "geometry.rim_roughness.amplitude", "must be >= 0 and <= 0.02 (of R0)");
-  require(rough.amplitude() == 0 || g.has_disk() || g.has_rounded_square(),
-          "geometry.rim_roughness.amplitude", "applies to disks and rounded squares only");
+  require(rough.amplitude() == 0 || g.has_disk() || g.has_rounded_square() || g.has_cylinder(),
+          "geometry.rim_roughness.amplitude",
+          "applies to disks, rounded squares and cylinders only");
   require(rough.min_mode() >= 1 && rough.max_mode() >= rough.min_mode() && rough.max_mode() <= 1024,
           "geometry.rim_roughness", "needs 1 <= min_mode <= max_mode <= 1024");
   require(g.target_elements() >= kMinElements && g.target_elements() <= limits.max_elements,
@@ -341,6 +454,17 @@ Mesh mesh_geometry(const v1::Geometry& g, const SpecLimits& limits) {
     case v1::Geometry::kRoundedSquare:
       return mesh_rounded_square(g.rounded_square().side(), g.rounded_square().corner_radius(),
                                  g.target_elements());
+    case v1::Geometry::kCylinder: {
+      const auto& c = g.cylinder();
+      return g.mesher() == v1::CONCENTRIC_RINGS
+                 ? mesh_cylinder_rings(c.radius(), c.thickness(), g.target_elements())
+                 : mesh_cylinder(c.radius(), c.thickness(), g.target_elements());
+    }
+    case v1::Geometry::kCorrugatedBox: {
+      const auto& b = g.corrugated_box();
+      return make_corrugated_box_mesh(b.lx(), b.ly(), b.lz(), b.amplitude(), b.kx(), b.ky(),
+                                      g.target_elements());
+    }
     case v1::Geometry::kMeshFile: {
       const std::string path = limits.mesh_root.empty()
                                    ? g.mesh_file()
@@ -361,7 +485,8 @@ Mesh mesh_geometry(const v1::Geometry& g, const SpecLimits& limits) {
       break;
   }
   throw SpecError("geometry",
-                  "one of disk, rounded_square, mesh_file or corrugated_strip is required");
+                  "one of disk, rounded_square, mesh_file, corrugated_strip, cylinder or "
+                  "corrugated_box is required");
 }
 
 }  // namespace
@@ -369,6 +494,8 @@ Mesh mesh_geometry(const v1::Geometry& g, const SpecLimits& limits) {
 bool meshes_with_gmsh(const v1::Geometry& g) {
   switch (g.shape_case()) {
     case v1::Geometry::kDisk:
+      return g.mesher() != v1::CONCENTRIC_RINGS;
+    case v1::Geometry::kCylinder:
       return g.mesher() != v1::CONCENTRIC_RINGS;
     case v1::Geometry::kRoundedSquare:
     case v1::Geometry::kMeshFile:
@@ -425,6 +552,12 @@ Problem make_problem_with_mesh(const v1::RunSpec& s, Mesh mesh, const SpecLimits
     case v1::Geometry::kCorrugatedStrip:
       set_up_corrugated_strip(g, p);
       break;
+    case v1::Geometry::kCylinder:
+      set_up_cylinder(g, p);
+      break;
+    case v1::Geometry::kCorrugatedBox:
+      set_up_corrugated_box(g, p);
+      break;
     default:
       break;
   }
@@ -451,6 +584,8 @@ NondimensionalGroups spec_groups(const v1::RunSpec& s) {
   if (s.geometry().has_disk()) r0 = s.geometry().disk().radius();
   if (s.geometry().has_rounded_square()) r0 = 0.5 * s.geometry().rounded_square().side();
   if (s.geometry().has_corrugated_strip()) r0 = s.geometry().corrugated_strip().height();
+  if (s.geometry().has_cylinder()) r0 = s.geometry().cylinder().radius();
+  if (s.geometry().has_corrugated_box()) r0 = s.geometry().corrugated_box().lz();
   return nondimensional_groups(p.material, p.viscosity, p.load, r0);
 }
 

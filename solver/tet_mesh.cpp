@@ -2,6 +2,7 @@
 // order; structured (Kuhn) boxes, flat and corrugated; volume and centroid.
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <limits>
 #include <numeric>
 #include <sstream>
@@ -381,6 +382,37 @@ Mesh make_corrugated_box_mesh(double lx, double ly, double lz, double amplitude,
   // Morton order, as the Gmsh meshes: the structured numbering puts z-neighbours nx ny nodes
   // apart, which the solver's gathers feel on large meshes. Finalizes too.
   sort_tet_mesh_for_locality(mesh);
+  return mesh;
+}
+
+Mesh extrude_mesh(const Mesh& base, double z_bottom, double z_top, int layers) {
+  if (base.dimension() != 2 || base.triangles.empty())
+    throw std::invalid_argument("extrude_mesh: the base must be a 2-D triangle mesh");
+  if (layers < 1) throw std::invalid_argument("extrude_mesh: layers must be >= 1");
+  if (!(z_top > z_bottom) || !std::isfinite(z_bottom) || !std::isfinite(z_top))
+    throw std::invalid_argument("extrude_mesh: needs finite z_bottom < z_top");
+  const std::size_t n = base.node_count();
+  if ((layers + 1.0) * static_cast<double>(n) > static_cast<double>(INT32_MAX))
+    throw std::invalid_argument("extrude_mesh: too many nodes for 32-bit indices");
+  Mesh mesh;
+  for (int k = 0; k <= layers; ++k) {
+    const double z = k == layers ? z_top : z_bottom + (z_top - z_bottom) * k / layers;
+    mesh.x.insert(mesh.x.end(), base.x.begin(), base.x.end());
+    mesh.y.insert(mesh.y.end(), base.y.begin(), base.y.end());
+    mesh.z.insert(mesh.z.end(), n, z);
+  }
+  mesh.tetrahedra.reserve(3 * base.triangles.size() * static_cast<std::size_t>(layers));
+  for (int k = 0; k < layers; ++k) {
+    const auto below = static_cast<int32_t>(k * n), above = static_cast<int32_t>((k + 1) * n);
+    for (auto t : base.triangles) {
+      std::sort(t.begin(), t.end());
+      const int32_t a = t[0], b = t[1], c = t[2];
+      mesh.tetrahedra.push_back({below + a, below + b, below + c, above + a});
+      mesh.tetrahedra.push_back({below + b, below + c, above + a, above + b});
+      mesh.tetrahedra.push_back({below + c, above + a, above + b, above + c});
+    }
+  }
+  finalize_mesh(mesh);  // orients each tetrahedron, finds the outward faces
   return mesh;
 }
 
