@@ -15,8 +15,10 @@ struct Material {
   double bulk_modulus_Pa = 2e9;   // kappa
   double shear_modulus_Pa = 5e3;  // mu
   double tait_gamma = 6.15;       // gamma-bar; the Tait exponent is n = gamma-bar + 1
-  // Kelvin-Voigt shear viscosity eta: Cauchy stress 2 eta dev(D), always on. 0 = elastic.
-  double shear_viscosity_Pa_s = 0.0;
+  // Kelvin-Voigt shear viscosity eta: Cauchy stress 2 eta dev(D), always on; 0 = elastic. The
+  // default is the spec's (docs/model.md, "Physical viscosity"): these structs' defaults are the
+  // spec's defaults (run_spec.cpp takes them from here).
+  double shear_viscosity_Pa_s = 0.25;
   double tait_n() const { return tait_gamma + 1.0; }
 };
 

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <numbers>
 
+#include "solver/continuum.hpp"
 #include "solver/integrator.hpp"
 
 namespace softshock {
@@ -40,10 +41,13 @@ double estimate_stable_dt(const v1::RunSpec& spec, double elements, double area_
   const auto& m = spec.material();
   const double kappa = m.bulk_modulus(), n = m.tait_gamma() + 1.0;
   const double pressure = std::max(0.0, spec.load().pressure());
+  // The Tait state at the load's pressure, p = (kappa / n)(J^-n - 1), and its wave speed: the
+  // solver's own laws (continuum.hpp).
   const double j_minus_n = 1.0 + n * pressure / kappa;
   const double j = std::pow(j_minus_n, -1.0 / n);
-  const double bulk = kappa * j_minus_n;
-  const double c = std::sqrt((bulk + 4.0 / 3.0 * m.shear_modulus()) * j / m.density());
+  const double bulk = continuum::tait_bulk_modulus(kappa, j_minus_n);
+  const double c_sq = continuum::longitudinal_speed_sq(bulk, m.shear_modulus(), m.density(), j);
+  const double c = std::sqrt(c_sq);
   // Equilateral triangle of area a: altitude sqrt(sqrt(3) a); the smallest of a graded mesh
   // is taken as a fifth of that (checked against the solver: tests/server/test_admission.cpp).
   const double mean_area = area_m2 / std::max(1.0, elements);
@@ -56,8 +60,9 @@ double estimate_stable_dt(const v1::RunSpec& spec, double elements, double area_
   // acoustic limit of a graded mesh's smallest element).
   const double q = c * (spec.viscosity().c2() + 0.5 * spec.viscosity().c1()) +
                    4.0 / 3.0 * m.shear_viscosity() * j / (m.density() * altitude);
-  return spec.run().cfl() * mass_blend_step_factor(spec.element().mass_blend()) * h /
-         (q + std::sqrt(q * q + c * c));
+  // h / (q + sqrt(q^2 + c^2)), the damped oscillator's limit, with the kinematic viscosity q h.
+  return spec.run().cfl() * mass_blend_step_factor(spec.element().mass_blend()) *
+         std::sqrt(continuum::stable_step_sq_kinematic(h * h, c_sq, q * h));
 }
 
 ResourceEstimate estimate_resources(const v1::RunSpec& spec, double elements, double area_m2) {

@@ -22,9 +22,12 @@ namespace pb = google::protobuf;
 // The thesis baseline (docs/model.md).
 constexpr double kRadius = 90e-6, kSide = 540e-6, kCornerRadius = 90e-6;
 constexpr int kTargetElements = 16500;
-constexpr double kDensity = 1000.0, kKappa = 2e9, kMu = 5e3, kGamma = 6.15;
-constexpr double kShearViscosity = 0.25;  // Pa s: docs/model.md, "Physical viscosity"
-constexpr double kC1 = 1.0, kC2 = 0.1, kRamp = 0.2;
+// The model's own defaults (model.hpp), so that a Problem built in code and a spec agree.
+constexpr double kDensity = Material{}.density_kg_m3, kKappa = Material{}.bulk_modulus_Pa,
+                 kMu = Material{}.shear_modulus_Pa, kGamma = Material{}.tait_gamma,
+                 kShearViscosity = Material{}.shear_viscosity_Pa_s;
+constexpr double kC1 = ArtificialViscosity{}.c1, kC2 = ArtificialViscosity{}.c2,
+                 kRamp = ArtificialViscosity{}.ramp;
 constexpr double kElementWeight = Element{}.element_weight,
                  kStabilization = Element{}.stabilization, kMassBlend = Element{}.mass_blend;
 constexpr double kRoughness = 3e-4;
@@ -33,7 +36,7 @@ constexpr double kStripWavelength = 10e-6, kStripHeight = 40e-6, kStripAmplitude
 constexpr double kCylinderThickness = 50e-6;  // the experiments' gel layer
 constexpr double kBoxLx = 20e-6, kBoxLy = 20e-6, kBoxLz = 40e-6, kBoxAmplitude = 50e-9;
 constexpr double kBoxKx = 2.0 * std::numbers::pi / 10e-6, kBoxKy = 2.0 * std::numbers::pi / 20e-6;
-constexpr double kPressure = 2e9, kDuration = 8e-9;
+constexpr double kPressure = PressurePulse{}.pressure_Pa, kDuration = PressurePulse{}.duration_s;
 // The run's defaults are the solver's own (model.hpp), as the element's are.
 constexpr double kEndTime = SolverOptions{}.end_time_s, kCfl = SolverOptions{}.cfl,
                  kOutputInterval = SolverOptions{}.output_interval_s,
@@ -163,13 +166,17 @@ bool multiple_of_pi(double kl) {
 
 }  // namespace
 
-v1::RunSpec parse_spec_json(const std::string& json) {
+v1::RunSpec parse_spec_json(const std::string& json, SpecJson source) {
   v1::RunSpec spec;
   pb::util::JsonParseOptions options;
-  options.ignore_unknown_fields = false;
+  options.ignore_unknown_fields = source == SpecJson::kStored;
   const auto status = pb::util::JsonStringToMessage(json, &spec, options);
-  if (!status.ok())
-    throw SpecError("spec", "invalid JSON for RunSpec: " + std::string(status.message()));
+  if (!status.ok()) {
+    throw SpecError("spec",
+                    std::string(source == SpecJson::kStored ? "stored spec does not parse: "
+                                                            : "invalid JSON for RunSpec: ") +
+                        std::string(status.message()));
+  }
   return spec;
 }
 

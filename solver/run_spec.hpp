@@ -36,8 +36,12 @@ struct SpecLimits {
   std::string mesh_root;
 };
 
-// Parses protobuf JSON (unknown fields rejected). Throws SpecError("spec", parser message).
-v1::RunSpec parse_spec_json(const std::string& json);
+// How a spec's JSON is read: a client's (unknown fields refused, the parser naming them) or one
+// stored by a daemon (unknown fields ignored: a spec written by a newer release still loads).
+enum class SpecJson { kClient, kStored };
+// The one JSON -> RunSpec parser (protobuf's JSON mapping). Throws SpecError("spec", parser
+// message).
+v1::RunSpec parse_spec_json(const std::string& json, SpecJson source = SpecJson::kClient);
 // Reads and parses a spec file; throws SpecError("spec", ...) naming the path.
 v1::RunSpec read_spec_file(const std::string& path);
 

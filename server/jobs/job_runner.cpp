@@ -69,12 +69,7 @@ Int json_count(const google::protobuf::Struct& s, const std::string& key) {
 }  // namespace
 
 v1::RunSpec parse_stored_spec(const std::string& json) {
-  v1::RunSpec spec;
-  google::protobuf::util::JsonParseOptions options;
-  options.ignore_unknown_fields = true;  // a spec stored by a newer daemon still loads
-  const auto status = google::protobuf::util::JsonStringToMessage(json, &spec, options);
-  if (!status.ok()) throw SpecError("spec", "stored spec does not parse: " + status.ToString());
-  return spec;
+  return parse_spec_json(json, SpecJson::kStored);
 }
 
 RunSummary parse_summary_json(const std::string& json) {

@@ -70,10 +70,10 @@ void SimulationService::fill_job(const JobRecord& r, v1::Job* job) const {
   job->set_name("jobs/" + r.id);
   job->set_id(r.id);
   job->set_state(static_cast<v1::JobState>(r.state));
-  google::protobuf::util::JsonParseOptions parse;
-  parse.ignore_unknown_fields = true;
-  if (!google::protobuf::util::JsonStringToMessage(r.spec_json, job->mutable_spec(), parse).ok()) {
-    log_warning("job ", r.id, ": stored spec does not parse");
+  try {
+    *job->mutable_spec() = parse_stored_spec(r.spec_json);
+  } catch (const SpecError& e) {
+    log_warning("job ", r.id, ": ", e.what());
   }
   job->mutable_labels()->insert(r.labels.begin(), r.labels.end());
   job->set_priority(r.priority);

@@ -45,6 +45,7 @@ TEST(PhysicsValidation, EnergyIsConservedWithoutViscosity) {
     p.element.mass_blend = mass_blend;
     p.mesh = mesh_disk(90e-6, 2000);
     p.viscosity.enabled = false;
+    p.material.shear_viscosity_Pa_s = 0.0;  // no viscosity of either kind
     p.load_all_boundary = false;
     p.origin = {0, 0};
     p.reference_radius_m = 90e-6;
@@ -104,6 +105,7 @@ TEST(PhysicsValidation, EnergyBalanceWithViscosityClosesAndConvergesInTime) {
 double measured_shock_speed(double pressure) {
   const double length = 300e-6, height = 6e-6;
   Problem p;
+  p.material.shear_viscosity_Pa_s = 0.0;                  // the thesis's model: Rankine-Hugoniot's
   p.mesh = make_rectangle_mesh(length, height, 600, 12);  // h = 0.5 um
   const std::size_t nn = p.mesh.node_count();
   p.fixed_y.assign(nn, 0);
@@ -184,6 +186,7 @@ double fundamental_period_error(int elements, double mass_blend = 0.0,
   p.mesh = mesh_disk(r0, elements);
   p.element.mass_blend = mass_blend;
   p.viscosity.enabled = false;
+  p.material.shear_viscosity_Pa_s = 0.0;  // linear acoustics: no viscosity
   p.load_all_boundary = false;
   p.origin = {0, 0};
   p.reference_radius_m = r0;
@@ -401,6 +404,7 @@ TEST(PhysicsValidation, ResultsAreDeterministicForAGivenThreadCount) {
 // (g) An inverting run stops cleanly with time, element and cause.
 TEST(PhysicsValidation, InvertingRunFailsWithTimeElementAndCause) {
   Problem p;
+  p.material.shear_viscosity_Pa_s = 0.0;
   p.mesh = make_rectangle_mesh(10e-6, 10e-6, 10, 10);
   p.load_all_boundary = false;
   const std::size_t nn = p.mesh.node_count();

@@ -2,6 +2,8 @@
 // the field and the rule.
 #include <gtest/gtest.h>
 
+#include <cmath>
+
 #include "solver/model.hpp"
 #include "solver/run_spec.hpp"
 
@@ -92,11 +94,89 @@ TEST(RunSpec, InvalidFieldsAreNamed) {
   EXPECT_EQ(error_field("{}"), "(accepted)");
 }
 
+// The model's structs and the spec share their defaults (run_spec.cpp reads them from model.hpp):
+// a Problem built in code has the spec's physics unless told otherwise.
+TEST(RunSpec, TheSpecsDefaultsAreTheModelsDefaults) {
+  const auto s = normalize_spec(parse_spec_json("{}"));
+  const Problem p = make_problem(normalize_spec(
+      parse_spec_json(R"({"geometry":{"target_elements":300},"run":{"end_time":1e-9}})")));
+  EXPECT_DOUBLE_EQ(s.material().shear_viscosity(), Material{}.shear_viscosity_Pa_s);
+  EXPECT_DOUBLE_EQ(Material{}.shear_viscosity_Pa_s, 0.25);
+  EXPECT_DOUBLE_EQ(p.material.shear_viscosity_Pa_s, Material{}.shear_viscosity_Pa_s);
+  EXPECT_DOUBLE_EQ(s.material().density(), Material{}.density_kg_m3);
+  EXPECT_DOUBLE_EQ(s.viscosity().ramp(), ArtificialViscosity{}.ramp);
+  EXPECT_DOUBLE_EQ(s.load().pressure(), PressurePulse{}.pressure_Pa);
+  EXPECT_DOUBLE_EQ(s.element().stabilization(), Element{}.stabilization);
+  EXPECT_DOUBLE_EQ(s.run().cfl(), SolverOptions{}.cfl);
+}
+
+// 3-D geometries: defaults, the problem they set up, and errors naming the field.
+TEST(RunSpec, ThreeDimensionalGeometries) {
+  const auto c = normalize_spec(parse_spec_json(R"({"geometry":{"cylinder":{}}})"));
+  EXPECT_DOUBLE_EQ(c.geometry().cylinder().radius(), 90e-6);
+  EXPECT_DOUBLE_EQ(c.geometry().cylinder().thickness(), 50e-6);
+  EXPECT_EQ(c.geometry().cylinder().faces(), v1::SLIDING);
+  EXPECT_EQ(c.geometry().mesher(), v1::CONCENTRIC_RINGS);
+  EXPECT_DOUBLE_EQ(c.geometry().rim_roughness().amplitude(), 3e-4);
+  const auto b = normalize_spec(parse_spec_json(R"({"geometry":{"corrugated_box":{}}})"));
+  EXPECT_DOUBLE_EQ(b.geometry().corrugated_box().lz(), 40e-6);
+  EXPECT_DOUBLE_EQ(b.geometry().corrugated_box().amplitude(), 50e-9);
+  EXPECT_EQ(b.geometry().mesher(), v1::FRONTAL_DELAUNAY);
+  EXPECT_DOUBLE_EQ(b.geometry().rim_roughness().amplitude(), 0.0);
+
+  EXPECT_EQ(error_field(R"({"geometry":{"cylinder":{"radius":0}}})"), "geometry.cylinder.radius");
+  EXPECT_EQ(error_field(R"({"geometry":{"cylinder":{"thickness":-1e-6}}})"),
+            "geometry.cylinder.thickness");
+  EXPECT_EQ(error_field(R"({"geometry":{"cylinder":{"thickness":1}}})"),
+            "geometry.cylinder.thickness");
+  EXPECT_EQ(error_field(R"({"geometry":{"cylinder":{"faces":7}}})"), "geometry.cylinder.faces");
+  EXPECT_EQ(error_field(R"({"geometry":{"corrugated_box":{"lz":0}}})"),
+            "geometry.corrugated_box.lz");
+  EXPECT_EQ(error_field(R"({"geometry":{"corrugated_box":{"amplitude":30e-6}}})"),
+            "geometry.corrugated_box.amplitude");
+  EXPECT_EQ(error_field(R"({"geometry":{"corrugated_box":{"kx":1e5}}})"),
+            "geometry.corrugated_box.kx");  // kx lx = 2 is not a multiple of pi
+  EXPECT_EQ(error_field(R"({"geometry":{"corrugated_box":{"ky":-314159.26535897932}}})"),
+            "geometry.corrugated_box.ky");
+  EXPECT_EQ(error_field(R"({"geometry":{"corrugated_box":{},"mesher":"CONCENTRIC_RINGS"}})"),
+            "geometry.mesher");
+  EXPECT_EQ(error_field(R"({"geometry":{"corrugated_box":{},
+      "rim_roughness":{"amplitude":1e-3}}})"),
+            "geometry.rim_roughness.amplitude");
+  EXPECT_EQ(error_field(R"({"geometry":{"corrugated_box":{"kx":0,"ky":0}}})"), "(accepted)");
+
+  // The cylinder's problem: the pulse on the lateral faces only, the faces held as asked.
+  for (const auto* faces : {"SLIDING", "BONDED", "FREE"}) {
+    const Problem p = make_problem(normalize_spec(
+        parse_spec_json(std::string(R"({"geometry":{"cylinder":{"thickness":20e-6,"faces":")") +
+                        faces + R"("},"target_elements":2000,"rim_roughness":{"amplitude":0}}})")));
+    ASSERT_EQ(p.mesh.dimension(), 3);
+    ASSERT_FALSE(p.loaded_faces.empty());
+    EXPECT_FALSE(p.load_all_boundary);
+    for (const auto& f : p.loaded_faces)
+      for (int32_t i : f) EXPECT_NEAR(std::hypot(p.mesh.x[i], p.mesh.y[i]), 90e-6, 1e-12);
+    std::size_t on_faces = 0, fixed_z = 0, fixed_xy = 0;
+    for (std::size_t i = 0; i < p.mesh.node_count(); ++i) {
+      const bool face = std::fabs(std::fabs(p.mesh.z[i]) - 10e-6) < 1e-15;
+      on_faces += face;
+      if (!p.fixed_z.empty()) fixed_z += p.fixed_z[i];
+      if (!p.fixed_x.empty()) fixed_xy += p.fixed_x[i] && p.fixed_y[i];
+    }
+    ASSERT_GT(on_faces, 0u);
+    EXPECT_EQ(fixed_z, std::string(faces) == "FREE" ? 0u : on_faces) << faces;
+    EXPECT_EQ(fixed_xy, std::string(faces) == "BONDED" ? on_faces : 0u) << faces;
+    EXPECT_DOUBLE_EQ(p.reference_radius_m, 90e-6);
+  }
+}
+
 TEST(RunSpec, MalformedJsonAndUnknownFieldsAreRejected) {
   EXPECT_EQ(error_field(R"({"geometry":{"disk":{"radius":1e-4}},"colour":"red"})"), "spec");
   EXPECT_EQ(error_field(R"({"geometry":)"), "spec");
   EXPECT_EQ(error_field(R"({"load":{"shape":"TRIANGLE"}})"), "spec");
   EXPECT_THROW(read_spec_file("/nonexistent/spec.json"), SpecError);
+  // A spec a daemon stored is read leniently: a field from a newer release is ignored.
+  EXPECT_DOUBLE_EQ(
+      parse_spec_json(R"({"run":{"cfl":0.5},"colour":"red"})", SpecJson::kStored).run().cfl(), 0.5);
 }
 
 TEST(PressurePulse, ShapesDeliverTheirDocumentedImpulse) {

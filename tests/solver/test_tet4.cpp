@@ -351,6 +351,7 @@ TEST(Tet4, FreeVibrationConservesEnergyToSecondOrder) {
         problem.mesh = testing::tet_box(4e-6, 4e-6, 4e-6, 4, 4, 4);
         problem.material.shear_modulus_Pa = 2e8;
         problem.viscosity.enabled = false;
+        problem.material.shear_viscosity_Pa_s = 0.0;
         problem.element.formulation = formulation;
         problem.element.mass_blend = blend;
         problem.load.pressure_Pa = 0.0;
