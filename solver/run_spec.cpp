@@ -349,8 +349,8 @@ void validate_spec(const v1::RunSpec& s, const SpecLimits& limits) {
           "CONCENTRIC_RINGS meshes disks and cylinders only");
   require(std::isfinite(g.mesh_rotation()) && std::fabs(g.mesh_rotation()) <= 8.0,
           "geometry.mesh_rotation", "must be a finite angle in [-8, 8] rad");
-  require(g.mesh_rotation() == 0.0 || g.has_disk(), "geometry.mesh_rotation",
-          "applies to disks only (it would turn any other body)");
+  require(g.mesh_rotation() == 0.0 || g.has_disk() || g.has_cylinder(), "geometry.mesh_rotation",
+          "applies to disks and cylinders only (it would turn any other body)");
   const auto& rough = g.rim_roughness();
   require(std::isfinite(rough.amplitude()) && rough.amplitude() >= 0 && rough.amplitude() <= 0.02,
           "geometry.rim_roughness.amplitude", "must be >= 0 and <= 0.02 (of R0)");
@@ -463,9 +463,11 @@ Mesh mesh_geometry(const v1::Geometry& g, const SpecLimits& limits) {
                                  g.target_elements());
     case v1::Geometry::kCylinder: {
       const auto& c = g.cylinder();
-      return g.mesher() == v1::CONCENTRIC_RINGS
-                 ? mesh_cylinder_rings(c.radius(), c.thickness(), g.target_elements())
-                 : mesh_cylinder(c.radius(), c.thickness(), g.target_elements());
+      Mesh mesh = g.mesher() == v1::CONCENTRIC_RINGS
+                      ? mesh_cylinder_rings(c.radius(), c.thickness(), g.target_elements())
+                      : mesh_cylinder(c.radius(), c.thickness(), g.target_elements());
+      if (g.mesh_rotation() != 0.0) rotate_mesh(mesh, g.mesh_rotation());  // about the z axis
+      return mesh;
     }
     case v1::Geometry::kCorrugatedBox: {
       const auto& b = g.corrugated_box();

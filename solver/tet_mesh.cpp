@@ -323,26 +323,34 @@ Mesh make_box_mesh(double lx, double ly, double lz, int nx, int ny, int nz) {
   auto node = [&](int i, int j, int k) {
     return static_cast<int32_t>((k * rows + j) * columns + i);
   };
-  // Kuhn's subdivision: one tetrahedron per path from corner (0,0,0) to (1,1,1) along the
-  // cell's edges, one per order of the three axes. Every cell is split along the same main
-  // diagonal, so neighbouring cells split their shared face along the same diagonal.
+  // Kuhn's subdivision: one tetrahedron per path from one corner of the cell to the opposite one
+  // along its edges, one per order of the three axes. Cells are mirrored in each axis where
+  // their index is odd (the path starts at the far side in that axis): a mirrored neighbour
+  // splits the shared face along the same diagonal, so the mesh is conforming, and it is
+  // symmetric under reflection about every cell plane -- a box of an even number of cells in x
+  // is its own mirror image about x = lx / 2 (one diagonal for all cells gave the box a handedness
+  // that moved the two ends of a flat free surface apart by 0.2 um under a 0.2 GPa shock,
+  // as large as the Richtmyer-Meshkov signal it was to measure).
   constexpr int kAxisOrders[6][3] = {{0, 1, 2}, {0, 2, 1}, {1, 0, 2},
                                      {1, 2, 0}, {2, 0, 1}, {2, 1, 0}};
   mesh.tetrahedra.reserve(6 * static_cast<std::size_t>(nx) * ny * nz);
   for (int k = 0; k < nz; ++k) {
     for (int j = 0; j < ny; ++j) {
       for (int i = 0; i < nx; ++i) {
+        const std::array<int, 3> mirror{i % 2, j % 2, k % 2};
+        const bool flipped = (mirror[0] + mirror[1] + mirror[2]) % 2 == 1;
         for (const auto& axes : kAxisOrders) {
-          std::array<int, 3> at{i, j, k};
+          std::array<int, 3> at{i + mirror[0], j + mirror[1], k + mirror[2]};
           std::array<int32_t, 4> tet{};
           tet[0] = node(at[0], at[1], at[2]);
           for (int step = 0; step < 3; ++step) {
-            ++at[axes[step]];
+            at[axes[step]] += mirror[axes[step]] ? -1 : 1;
             tet[step + 1] = node(at[0], at[1], at[2]);
           }
-          // The path's volume has the sign of the axis order's permutation: make it positive
-          // here (finalize would, too) so the structured numbering is the final one.
-          if (odd_permutation(axes[0], axes[1], axes[2])) std::swap(tet[2], tet[3]);
+          // The path's volume has the sign of the axis order's permutation, flipped once per
+          // mirrored axis: make it positive here (finalize would, too) so the structured
+          // numbering is the final one.
+          if (odd_permutation(axes[0], axes[1], axes[2]) != flipped) std::swap(tet[2], tet[3]);
           mesh.tetrahedra.push_back(tet);
         }
       }
@@ -368,8 +376,10 @@ Mesh make_corrugated_box_mesh(double lx, double ly, double lz, double amplitude,
   // 6 nx ny nz = N with cubic cells of side h: h^3 = 6 lx ly lz / N. nz takes up the rounding
   // of nx and ny so the count stays near the target.
   const double h = std::cbrt(6.0 * lx * ly * lz / target_elements);
-  const int nx = std::max(1, static_cast<int>(std::lround(lx / h)));
-  const int ny = std::max(1, static_cast<int>(std::lround(ly / h)));
+  // Even counts in x and y: the mirrored cells then make the box symmetric about its middle
+  // planes, as the corrugation's quarter cell is (the crest and trough columns alike).
+  const int nx = std::max(2, 2 * static_cast<int>(std::lround(0.5 * lx / h)));
+  const int ny = std::max(2, 2 * static_cast<int>(std::lround(0.5 * ly / h)));
   const int nz = std::max(1, static_cast<int>(std::lround(target_elements / (6.0 * nx * ny))));
   Mesh mesh = make_box_mesh(lx, ly, lz, nx, ny, nz);
   for (std::size_t i = 0; i < mesh.node_count(); ++i) {
