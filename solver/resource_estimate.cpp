@@ -25,6 +25,15 @@ constexpr double kFrameOverheadBytes = 16e3;
 // Mesh in the result file: nodes (2 doubles) and triangles (3 int32) per element, roughly.
 constexpr double kMeshBytesPerElement = 0.5 * 16 + 12;
 
+// Tetrahedra: the peak resident size of softshock-solve with frames was 62 MB at 100k and 181 MB
+// at 400k (2026-12-04): 395 B per tetrahedron over ~22 MB; taken as 480 B over the daemon's fixed
+// part. Nodes per tetrahedron: 0.19-0.21 on the extruded ring, Gmsh and box meshes; 0.22 here.
+constexpr double kBytesPerTetrahedron = 480;
+constexpr double kNodesPerTetrahedron = 0.22;
+constexpr double kFrameBytesPerTetrahedron = 6 * 8 + kNodesPerTetrahedron * 2 * 3 * 8;
+// Nodes (3 doubles), tetrahedra (4 int32), boundary faces (3 int32, ~0.1 per tetrahedron).
+constexpr double kMeshBytesPerTetrahedron = kNodesPerTetrahedron * 24 + 16 + 0.1 * 12;
+
 }  // namespace
 
 double spec_area_m2(const v1::RunSpec& spec) {
@@ -34,10 +43,30 @@ double spec_area_m2(const v1::RunSpec& spec) {
     const double side = g.rounded_square().side(), r = g.rounded_square().corner_radius();
     return side * side - (4.0 - std::numbers::pi) * r * r;
   }
+  if (g.has_corrugated_strip()) {  // the corrugation's mean over the half wavelength is zero
+    return 0.5 * g.corrugated_strip().wavelength() * g.corrugated_strip().height();
+  }
   return std::nan("");
 }
 
-double estimate_stable_dt(const v1::RunSpec& spec, double elements, double area_m2) {
+double spec_volume_m3(const v1::RunSpec& spec) {
+  const auto& g = spec.geometry();
+  if (g.has_cylinder()) {
+    const double r = g.cylinder().radius();
+    return std::numbers::pi * r * r * g.cylinder().thickness();
+  }
+  if (g.has_corrugated_box()) {  // the corrugation's mean is zero for kx, ky > 0; a flat box else
+    const auto& b = g.corrugated_box();
+    const double mean_top = b.kx() == 0 && b.ky() == 0 ? b.amplitude() : 0.0;
+    return b.lx() * b.ly() * (b.lz() + mean_top);
+  }
+  return std::nan("");
+}
+
+namespace {
+
+// The stable step for a smallest element altitude `altitude` (uncompressed) at the load.
+double stable_dt_at_load(const v1::RunSpec& spec, double altitude0, double mass_factor) {
   const auto& m = spec.material();
   const double kappa = m.bulk_modulus(), n = m.tait_gamma() + 1.0;
   const double pressure = std::max(0.0, spec.load().pressure());
@@ -48,10 +77,7 @@ double estimate_stable_dt(const v1::RunSpec& spec, double elements, double area_
   const double bulk = continuum::tait_bulk_modulus(kappa, j_minus_n);
   const double c_sq = continuum::longitudinal_speed_sq(bulk, m.shear_modulus(), m.density(), j);
   const double c = std::sqrt(c_sq);
-  // Equilateral triangle of area a: altitude sqrt(sqrt(3) a); the smallest of a graded mesh
-  // is taken as a fifth of that (checked against the solver: tests/server/test_admission.cpp).
-  const double mean_area = area_m2 / std::max(1.0, elements);
-  const double altitude = std::sqrt(std::sqrt(3.0) * mean_area) * j;
+  const double altitude = altitude0 * j;
   const double h = 0.2 * altitude;
   // The viscous term of the solver's step, h / (q + sqrt(q^2 + c^2)) (continuum::stable_step_sq):
   // the artificial viscosity inside a shock front, where the compression measure z (velocity
@@ -61,8 +87,24 @@ double estimate_stable_dt(const v1::RunSpec& spec, double elements, double area_
   const double q = c * (spec.viscosity().c2() + 0.5 * spec.viscosity().c1()) +
                    4.0 / 3.0 * m.shear_viscosity() * j / (m.density() * altitude);
   // h / (q + sqrt(q^2 + c^2)), the damped oscillator's limit, with the kinematic viscosity q h.
-  return spec.run().cfl() * mass_blend_step_factor(spec.element().mass_blend()) *
+  return spec.run().cfl() * mass_factor *
          std::sqrt(continuum::stable_step_sq_kinematic(h * h, c_sq, q * h));
+}
+
+}  // namespace
+
+double estimate_stable_dt(const v1::RunSpec& spec, double elements, double area_m2) {
+  // Equilateral triangle of area a: altitude sqrt(sqrt(3) a); the smallest of a graded mesh
+  // is taken as a fifth of that (checked against the solver: tests/server/test_admission.cpp).
+  const double mean_area = area_m2 / std::max(1.0, elements);
+  return stable_dt_at_load(spec, std::sqrt(std::sqrt(3.0) * mean_area),
+                           mass_blend_step_factor(spec.element().mass_blend()));
+}
+
+double estimate_stable_dt_3d(const v1::RunSpec& spec, double elements, double volume_m3) {
+  const double mean_volume = volume_m3 / std::max(1.0, elements);
+  return stable_dt_at_load(spec, continuum::regular_tetrahedron_altitude(mean_volume),
+                           1.0 / std::sqrt(1.0 + 0.8 * spec.element().mass_blend()));
 }
 
 ResourceEstimate estimate_resources(const v1::RunSpec& spec, double elements, double area_m2) {
@@ -80,6 +122,39 @@ ResourceEstimate estimate_resources(const v1::RunSpec& spec, double elements, do
   e.disk_bytes = frames * (kFrameBytesPerElement * elements + kFrameOverheadBytes) + history_bytes +
                  kMeshBytesPerElement * elements;
   return e;
+}
+
+ResourceEstimate estimate_resources_3d(const v1::RunSpec& spec, double elements, double volume_m3) {
+  const auto& r = spec.run();
+  ResourceEstimate e;
+  e.dt_s = estimate_stable_dt_3d(spec, elements, volume_m3);
+  e.steps = r.end_time() / e.dt_s;
+  const double samples = std::floor(r.end_time() / r.history_interval()) + 1;
+  // The modes twice: at the mid-plane and averaged over the thickness.
+  const double history_bytes = samples * (kHistoryColumns + 2 * (r.modes() + 1)) * 8;
+  const double frames =
+      r.output_interval() > 0 ? std::floor(r.end_time() / r.output_interval()) + 1 : 0;
+  e.memory_bytes = kFixedBytes + kBytesPerTetrahedron * elements + 2 * history_bytes +
+                   kFrameBytesPerTetrahedron * elements;
+  e.disk_bytes = frames * (kFrameBytesPerTetrahedron * elements + kFrameOverheadBytes) +
+                 history_bytes + kMeshBytesPerTetrahedron * elements;
+  return e;
+}
+
+ResourceEstimate estimate_spec_resources(const v1::RunSpec& spec) {
+  const double elements = spec.geometry().target_elements();
+  const double volume = spec_volume_m3(spec);
+  if (!std::isnan(volume)) return estimate_resources_3d(spec, elements, volume);
+  const double area = spec_area_m2(spec);
+  if (!std::isnan(area)) return estimate_resources(spec, elements, area);
+  const double nan = std::nan("");
+  return {nan, nan, nan, nan};
+}
+
+ResourceEstimate estimate_mesh_resources(const v1::RunSpec& spec, const Mesh& mesh) {
+  const double elements = static_cast<double>(mesh.element_count());
+  return mesh.dimension() == 3 ? estimate_resources_3d(spec, elements, mesh_volume(mesh))
+                               : estimate_resources(spec, elements, mesh_area(mesh));
 }
 
 }  // namespace softshock

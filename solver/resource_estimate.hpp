@@ -8,6 +8,7 @@
 #pragma once
 
 #include "softshock/v1/spec.pb.h"
+#include "solver/mesh.hpp"
 
 namespace softshock {
 
@@ -27,8 +28,20 @@ double estimate_stable_dt(const v1::RunSpec& spec, double elements, double area_
 // The whole estimate for `elements` triangles covering `area_m2`.
 ResourceEstimate estimate_resources(const v1::RunSpec& spec, double elements, double area_m2);
 
-// The reference area of a normalized spec's geometry (disk, rounded square); NaN for a
-// mesh_file (known once meshed).
+// The same for tetrahedra: the smallest altitude taken as a fifth of the regular tetrahedron's
+// of the mean volume (the extruded ring meshes' worst is ~0.4 of it), shrunk by J under the load;
+// memory and frames per tetrahedron measured (docs/reliability.md).
+double estimate_stable_dt_3d(const v1::RunSpec& spec, double elements, double volume_m3);
+ResourceEstimate estimate_resources_3d(const v1::RunSpec& spec, double elements, double volume_m3);
+
+// The reference area of a normalized spec's 2-D geometry (disk, rounded square, strip), the volume
+// of a 3-D one (cylinder, corrugated box); NaN for a mesh_file (known once meshed) and for the
+// other dimension's shapes.
 double spec_area_m2(const v1::RunSpec& spec);
+double spec_volume_m3(const v1::RunSpec& spec);
+// The estimate from the spec alone (NaN fields for a mesh_file), or from a mesh (its own area or
+// volume and element count): what admission control compares with the host's limits.
+ResourceEstimate estimate_spec_resources(const v1::RunSpec& spec);
+ResourceEstimate estimate_mesh_resources(const v1::RunSpec& spec, const Mesh& mesh);
 
 }  // namespace softshock

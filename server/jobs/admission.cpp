@@ -70,9 +70,9 @@ void check_admission(const v1::RunSpec& spec, const ResourceEstimate& e,
 }
 
 void check_spec_admission(const v1::RunSpec& spec, const AdmissionLimits& limits) {
-  const double area = spec_area_m2(spec);
-  if (std::isnan(area)) return;  // mesh_file: at start, with the mesh
-  check_admission(spec, estimate_resources(spec, spec.geometry().target_elements(), area), limits);
+  const ResourceEstimate e = estimate_spec_resources(spec);
+  if (std::isnan(e.steps)) return;  // mesh_file: at start, with the mesh
+  check_admission(spec, e, limits);
 }
 
 }  // namespace softshock::server

@@ -399,8 +399,7 @@ void JobRunner::run_job(const std::string& id, CancelToken& cancel) {
       problem = make_problem_with_mesh(spec, std::move(*mesh), config_.limits);
       if (!meshing.warning.empty()) log_warning("job ", id, ": mesh not cached: ", meshing.warning);
       // Again with the real mesh (a mesh_file is first known here) and today's limits.
-      estimate = estimate_resources(spec, static_cast<double>(problem.mesh.element_count()),
-                                    mesh_area(problem.mesh));
+      estimate = estimate_mesh_resources(spec, problem.mesh);
       check_admission(spec, estimate, config_.admission);
       options = make_options(spec);
       options.threads = std::max(1, config_.solver_threads);
