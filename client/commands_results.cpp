@@ -280,6 +280,46 @@ FieldData fetch_field(Connection& conn, const v1::GetFieldRequest& request) {
   }
 }
 
+// --slice: "z=V" (x=, y= likewise: the plane through V on that axis, normal along it), or
+// "PX,PY,PZ:NX,NY,NZ" (a point and a normal), in metres.
+v1::Slice parse_slice(const std::string& text) {
+  v1::Slice s;
+  auto number = [&](const std::string& t) {
+    char* end = nullptr;
+    const double v = std::strtod(t.c_str(), &end);
+    if (t.empty() || end != t.c_str() + t.size() || !std::isfinite(v)) {
+      usage_error("--slice: '" + t + "' is not a number (expects z=V or PX,PY,PZ:NX,NY,NZ in m)");
+    }
+    return v;
+  };
+  if (text.size() > 2 && text[1] == '=' && (text[0] == 'x' || text[0] == 'y' || text[0] == 'z')) {
+    const double v = number(text.substr(2));
+    if (text[0] == 'x') s.set_px(v), s.set_nx(1);
+    if (text[0] == 'y') s.set_py(v), s.set_ny(1);
+    if (text[0] == 'z') s.set_pz(v), s.set_nz(1);
+    return s;
+  }
+  const auto colon = text.find(':');
+  std::vector<double> values;
+  for (const std::string& part :
+       {text.substr(0, colon),
+        colon == std::string::npos ? std::string() : text.substr(colon + 1)}) {
+    std::size_t start = 0;
+    while (start <= part.size() && !part.empty()) {
+      const std::size_t comma = part.find(',', start);
+      values.push_back(number(part.substr(start, comma - start)));
+      if (comma == std::string::npos) break;
+      start = comma + 1;
+    }
+  }
+  if (colon == std::string::npos || values.size() != 6) {
+    usage_error("--slice: expects z=V (or x=, y=) or PX,PY,PZ:NX,NY,NZ, got '" + text + "'");
+  }
+  s.set_px(values[0]), s.set_py(values[1]), s.set_pz(values[2]);
+  s.set_nx(values[3]), s.set_ny(values[4]), s.set_nz(values[5]);
+  return s;
+}
+
 void write_field_csv(const std::string& path, const FieldData& f) {
   std::ofstream file;
   std::ostream* out = &std::cout;
@@ -290,24 +330,54 @@ void write_field_csv(const std::string& path, const FieldData& f) {
   }
   const auto& h = f.header;
   const int comps = std::max(1, h.components());
-  const bool vector = comps == 2;
+  // value, or value_x,value_y[,value_z]
+  std::string value_columns = comps == 1 ? "value" : "value_x,value_y";
+  if (comps == 3) value_columns += ",value_z";
+  const bool slice = h.slice_origin_size() == 3;
   if (h.location() == "raster") {
-    // Cell centres in metres, so the file stands alone (no mesh needed to place the values).
-    *out << (vector ? "x,y,value_x,value_y\n" : "x,y,value\n");
+    // Cell centres in metres, so the file stands alone (no mesh needed to place the values); a
+    // 3-D slice's cells also in the body's coordinates.
+    *out << (slice ? "u,v,x,y,z," : "x,y,") << value_columns << '\n';
     const double dx = (h.x_max() - h.x_min()) / std::max(1, h.nx());
     const double dy = (h.y_max() - h.y_min()) / std::max(1, h.ny());
     for (int j = 0; j < h.ny(); ++j) {
       for (int i = 0; i < h.nx(); ++i) {
         std::size_t cell = static_cast<std::size_t>(j) * h.nx() + i;
-        *out << fmt_exact(h.x_min() + (i + 0.5) * dx) << ','
-             << fmt_exact(h.y_min() + (j + 0.5) * dy);
+        const double u = h.x_min() + (i + 0.5) * dx, v = h.y_min() + (j + 0.5) * dy;
+        *out << fmt_exact(u) << ',' << fmt_exact(v);
+        if (slice)
+          for (int k = 0; k < 3; ++k)
+            *out << ',' << fmt_exact(h.slice_origin(k) + u * h.slice_u(k) + v * h.slice_v(k));
         for (int c = 0; c < comps; ++c) *out << ',' << fmt_exact(f.values[cell * comps + c]);
         *out << '\n';
       }
     }
+  } else if (h.location() == "surface") {
+    // Node fields at the (clustered) vertices; element fields at the triangles' centroids.
+    const auto nv = static_cast<std::size_t>(h.surface_vertices()),
+               nt = static_cast<std::size_t>(h.surface_triangles());
+    const double* xyz = f.values.data();
+    const double* tri = xyz + 3 * nv;
+    const double* val = tri + 3 * nt;
+    const bool per_vertex = f.values.size() == 3 * nv + 3 * nt + nv * comps;
+    *out << "x,y,z," << value_columns << '\n';
+    for (std::size_t k = 0; k < (per_vertex ? nv : nt); ++k) {
+      double p[3] = {0, 0, 0};
+      for (int d = 0; d < 3; ++d) {
+        if (per_vertex) {
+          p[d] = xyz[3 * k + d];
+        } else {
+          for (int c = 0; c < 3; ++c)
+            p[d] += xyz[3 * static_cast<std::size_t>(tri[3 * k + c]) + d] / 3.0;
+        }
+      }
+      *out << fmt_exact(p[0]) << ',' << fmt_exact(p[1]) << ',' << fmt_exact(p[2]);
+      for (int c = 0; c < comps; ++c) *out << ',' << fmt_exact(val[k * comps + c]);
+      *out << '\n';
+    }
   } else {
     // Index into the full node or element array (the sample k is index k * every).
-    *out << "index" << (vector ? ",value_x,value_y\n" : ",value\n");
+    *out << "index," << value_columns << '\n';
     const std::size_t every = static_cast<std::size_t>(std::max(1, h.every()));
     for (std::size_t k = 0; k * comps < f.values.size(); ++k) {
       *out << k * every;
@@ -325,12 +395,17 @@ void print_field_summary(const FieldData& f, const std::vector<std::string>& wri
   double lo = INFINITY, hi = -INFINITY, sum = 0;
   const int comps = std::max(1, h.components());
   // Statistics of the magnitude for vectors: a single min/max of interleaved x, y means little.
-  for (std::size_t k = 0; k * comps < f.values.size(); ++k) {
+  const std::size_t first =
+      h.location() == "surface"
+          ? 3 * static_cast<std::size_t>(h.surface_vertices() + h.surface_triangles())
+          : 0;
+  for (std::size_t k = 0; first + k * comps < f.values.size(); ++k) {
+    const double* item = f.values.data() + first + k * comps;
     double v = 0;
     if (comps == 1) {
-      v = f.values[k];
+      v = item[0];
     } else {
-      for (int c = 0; c < comps; ++c) v += f.values[k * comps + c] * f.values[k * comps + c];
+      for (int c = 0; c < comps; ++c) v += item[c] * item[c];
       v = std::sqrt(v);
     }
     if (std::isnan(v)) {
@@ -348,15 +423,32 @@ void print_field_summary(const FieldData& f, const std::vector<std::string>& wri
   kv.add("time", fmt_ns(h.time()));
   kv.add("location", h.location());
   kv.add("components", std::to_string(comps));
+  if (h.location() == "raster" && h.slice_origin_size() == 3) {
+    auto vec = [&](auto get) {
+      return "(" + fmt_num(get(0)) + ", " + fmt_num(get(1)) + ", " + fmt_num(get(2)) + ")";
+    };
+    kv.add("slice", "through " + vec([&](int k) { return h.slice_origin(k) * 1e6; }) +
+                        " µm, axes u " + vec([&](int k) { return h.slice_u(k); }) + ", v " +
+                        vec([&](int k) { return h.slice_v(k); }));
+  }
+  if (h.location() == "surface") {
+    kv.add("surface", std::to_string(h.surface_vertices()) + " vertices, " +
+                          std::to_string(h.surface_triangles()) + " triangles");
+  }
   if (h.location() == "raster") {
     kv.add("raster", std::to_string(h.nx()) + " x " + std::to_string(h.ny()));
     kv.add("extent", "x " + fmt_num(h.x_min() * 1e6) + " .. " + fmt_num(h.x_max() * 1e6) +
                          " µm, y " + fmt_num(h.y_min() * 1e6) + " .. " + fmt_num(h.y_max() * 1e6) +
                          " µm");
-  } else {
+  } else if (h.location() != "surface") {
     kv.add("every", std::to_string(std::max(1, h.every())));
   }
-  kv.add("values", std::to_string(f.values.size() / comps) +
+  // The field's own values (a surface's stream begins with its geometry).
+  const std::size_t geometry =
+      h.location() == "surface"
+          ? 3 * static_cast<std::size_t>(h.surface_vertices() + h.surface_triangles())
+          : 0;
+  kv.add("values", std::to_string((f.values.size() - geometry) / comps) +
                        (nan ? " (" + std::to_string(nan) + " outside the body)" : ""));
   std::string what = comps == 1 ? "" : " |v|";
   if (n > 0) {
@@ -382,17 +474,29 @@ int cmd_field(const GlobalOptions& g, const ParsedArgs& a) {
   if (a.has("time") && a.has("frame")) usage_error("give --time or --frame, not both");
   if (auto t = a.get("time")) request.set_time(parse_time_seconds("time", *t));
   if (auto k = a.get("frame")) request.set_frame(parse_nonneg_int32("frame", *k));
-  if (a.has("raster") && a.has("every")) usage_error("give --raster or --every, not both");
+  if (a.has("raster") + a.has("every") + a.has("surface") > 1)
+    usage_error("give one of --raster, --every and --surface");
   if (auto r = a.get("raster")) {
     auto [nx, ny] = parse_raster("raster", *r);
     request.mutable_raster()->set_nx(nx);
     request.mutable_raster()->set_ny(ny);
   }
   if (a.has("every")) request.set_every(parse_every(a));
+  if (auto sl = a.get("slice")) {
+    *request.mutable_slice() = parse_slice(*sl);
+    if (!request.has_raster() && !a.has("every") && !a.has("surface")) {
+      request.mutable_raster()->set_nx(256);  // a slice is a raster
+      request.mutable_raster()->set_ny(256);
+    }
+  }
+  if (auto n = a.get("surface")) {
+    request.mutable_surface()->set_max_triangles(parse_nonneg_int32("surface", *n));
+  }
   auto png = a.get("png");
   auto csv = a.get("csv");
   if (png) {
-    if (a.has("every")) usage_error("--png needs a raster (--raster NXxNY), not --every");
+    if (a.has("every") || a.has("surface"))
+      usage_error("--png needs a raster (--raster NXxNY or --slice), not --every or --surface");
     // A picture needs values on a grid; 256 x 256 resolves the baseline disk's elements.
     if (!request.has_raster()) {
       request.mutable_raster()->set_nx(256);

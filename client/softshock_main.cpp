@@ -65,14 +65,18 @@ const std::vector<Command>& commands() {
        cmd_series},
       {"field",
        "ID --name J|mean_stress|hoop_stress|radial_stress|von_mises|displacement|velocity\n"
-       "                 [--time T | --frame K] [--raster NXxNY | --every K]"
-       " [--csv FILE] [--png FILE]",
-       "a field frame: statistics, CSV ('-' = stdout) or a PNG plot (raster, default 256x256)",
+       "                 [--time T | --frame K] [--raster NXxNY | --every K | --surface N]\n"
+       "                 [--slice z=V | --slice PX,PY,PZ:NX,NY,NZ] [--csv FILE] [--png FILE]",
+       "a field frame: statistics, CSV ('-' = stdout) or a PNG plot (raster, default 256x256); "
+       "3-D results: --slice samples a plane (default z = 0), --surface N the deformed boundary "
+       "decimated to N triangles",
        {{"name", true},
         {"time", true},
         {"frame", true},
         {"raster", true},
         {"every", true},
+        {"slice", true},
+        {"surface", true},
         {"csv", true},
         {"png", true}},
        1,

@@ -30,17 +30,26 @@ RADIUS, THICKNESS = 90e-6, 50e-6
 
 
 def run(solver, spec, out, threads):
+    """Runs the spec in `out` (reusing a finished run of the same spec there); a run that fails
+    (e.g. MESH_DISTORTION) keeps its partial result and its summary says why."""
     os.makedirs(out, exist_ok=True)
     path = os.path.join(out, "spec.json")
+    done = os.path.join(out, "summary.json")
+    if os.path.exists(done) and os.path.exists(path):
+        with open(path) as f, open(done) as g:
+            if json.load(f) == spec:
+                return json.load(g)
     with open(path, "w") as f:
         json.dump(spec, f)
     started = time.monotonic()
     p = subprocess.run([solver, "--spec", path, "--out", out, "--quiet", "--threads", str(threads)],
                        capture_output=True, text=True)
-    if p.returncode != 0:
+    if p.returncode not in (0, 1) or not p.stdout.strip():
         raise SystemExit(f"{out}: softshock-solve failed ({p.returncode}): {p.stderr[-2000:]}")
     summary = json.loads(p.stdout.strip().splitlines()[-1])
     summary["seconds"] = time.monotonic() - started
+    with open(done, "w") as f:
+        json.dump(summary, f)
     return summary
 
 
@@ -72,7 +81,9 @@ def series(out, per_metre):
 def figures(summary, s):
     t = s["time"]
 
-    def at(name, time_s):
+    def at(name, time_s):  # NaN past the end of a run that stopped early
+        if time_s > t[-1] * (1 + 1e-9):
+            return float("nan")
         return float(s[name][int(np.argmin(np.abs(t - time_s)))])
 
     def mode_at(key, time_s):
@@ -82,9 +93,11 @@ def figures(summary, s):
     reflections = summary.get("rim_reflections_s") or []
     end = float(t[-1])
     out = {
+        "status": summary["status"] + (f" ({summary['failure']} at {t[-1] * 1e9:.0f} ns)"
+                                       if summary.get("failure") else ""),
         "elements": summary["elements"], "steps": summary["steps"],
         "minutes": round(summary["seconds"] / 60, 1),
-        "shock_at_center_ns": summary["shock_at_center_s"] * 1e9,
+        "shock_at_center_ns": (summary["shock_at_center_s"] or float("nan")) * 1e9,
         "rim_reflections_ns": [r * 1e9 for r in reflections[:3]],
         "energy_70ns_J_per_m": at("energy", 70e-9),
         "energy_end_J_per_m": float(s["energy"][-1]),
@@ -134,15 +147,15 @@ def main():
 
     with open(os.path.join(args.out, "figures.json"), "w") as f:
         json.dump({k: v[0] for k, v in results.items()}, f, indent=1)
-    print("| run | elements | steps | min | centre (ns) | rim reflections (ns) | energy at 70 ns "
-          "(J/m) | energy at end (J/m) | Ā filtered 200 ns | Ā filtered end | dominant mode "
-          "(mid-plane / z-mean) | max face u_z (µm) |")
-    print("|---|---:|---:|---:|---:|---|---:|---:|---:|---:|---|---:|")
+    print("| run | status | elements | steps | min | centre (ns) | rim reflections (ns) | energy "
+          "at 70 ns (J/m) | energy at end (J/m) | Ā filtered 200 ns | Ā filtered end | dominant "
+          "mode (mid-plane / z-mean) | max face u_z (µm) |")
+    print("|---|---|---:|---:|---:|---:|---|---:|---:|---:|---:|---|---:|")
     for label, (r, _) in results.items():
         refl = ", ".join(f"{x:.1f}" for x in r["rim_reflections_ns"])
         modes = f"{r['dominant_mode_end']}" + (f" / {r['dominant_mode_z_mean_end']}"
                                                if "dominant_mode_z_mean_end" in r else "")
-        print(f"| {label} | {r['elements']:,} | {r['steps']:,} | {r['minutes']} | "
+        print(f"| {label} | {r['status']} | {r['elements']:,} | {r['steps']:,} | {r['minutes']} | "
               f"{r['shock_at_center_ns']:.2f} | {refl} | {r['energy_70ns_J_per_m']:.4f} | "
               f"{r['energy_end_J_per_m']:.4f} | {r['abar_filtered_200ns']:.4f} | "
               f"{r['abar_filtered_end']:.4f} | {modes} | "

@@ -17,6 +17,7 @@
 #include "server/store/mesh_store.hpp"
 #include "server/transport/auth.hpp"
 #include "softshock/v1/service.grpc.pb.h"
+#include "solver/io/result_file.hpp"
 #include "solver/run_spec.hpp"
 
 namespace softshock::server {
@@ -83,6 +84,11 @@ class SimulationService final : public v1::SimulationService::Service {
   grpc::Status modes(const v1::GetModesRequest& req, v1::Modes* resp);
   grpc::Status field(grpc::ServerContext* ctx, const v1::GetFieldRequest& req,
                      grpc::ServerWriter<v1::FieldChunk>* writer);
+  // A 3-D result's raster (a planar slice) or decimated surface, into values and the header.
+  grpc::Status field_3d(const v1::GetFieldRequest& req, const ResultReader& reader,
+                        std::size_t frame, int components, bool node_field, int nx, int ny,
+                        std::size_t max_triangles, std::vector<double>& values,
+                        v1::FieldHeader* header) const;
   grpc::Status submit_grid(grpc::ServerContext* ctx, const v1::SubmitGridRequest& req,
                            v1::Grid* resp);
   grpc::Status cancel_grid(const std::string& id, v1::Grid* resp);

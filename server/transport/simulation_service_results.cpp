@@ -9,6 +9,7 @@
 
 #include "server/log.hpp"
 #include "server/transport/field_raster.hpp"
+#include "server/transport/field_slice.hpp"
 #include "server/transport/resource_name.hpp"
 #include "server/transport/rpc_guard.hpp"
 #include "server/transport/rpc_support.hpp"
@@ -28,6 +29,9 @@ constexpr int kMaxRasterSide = 2048;
 constexpr int64_t kMaxRasterCells = 4'194'304;
 constexpr std::size_t kChunkDoubles = 65536;         // 512 KiB per FieldChunk
 constexpr std::size_t kMaxUnaryDoubles = 4'000'000;  // 32 MiB per TimeSeries/Modes answer
+// A decimated surface: ~1 MB of coordinates and indices by default, ~10 MB at most.
+constexpr std::size_t kDefaultSurfaceTriangles = 20'000;
+constexpr int kMaxSurfaceTriangles = 200'000;
 
 struct FieldKind {
   bool node;
@@ -42,7 +46,7 @@ const std::map<std::string, FieldKind>& field_kinds() {
       {"hoop_stress", {false, 1, "Pa"}},
       {"von_mises", {false, 1, "Pa"}},
       {"aspect_ratio", {false, 1, "1"}},
-      {"displacement", {true, 2, "m"}},
+      {"displacement", {true, 2, "m"}},  // components: the mesh's dimension
       {"velocity", {true, 2, "m/s"}},
   };
   return kinds;
@@ -221,9 +225,10 @@ Status SimulationService::field(grpc::ServerContext* ctx, const v1::GetFieldRequ
     for (const auto& [n, k] : field_kinds()) list += (list.empty() ? "" : ", ") + n;
     return invalid("name", "unknown field '" + req.name() + "' (known: " + list + ")");
   }
-  const FieldKind kind = kind_it->second;
+  FieldKind kind = kind_it->second;
   int every = 1;
   int nx = 0, ny = 0;
+  std::size_t max_triangles = kDefaultSurfaceTriangles;
   if (req.sampling_case() == v1::GetFieldRequest::kEvery) {
     if (req.every() < 0) return invalid("every", "must be >= 1");
     every = std::max(1, req.every());
@@ -237,6 +242,14 @@ Status SimulationService::field(grpc::ServerContext* ctx, const v1::GetFieldRequ
               "raster: nx, ny <= " + std::to_string(kMaxRasterSide) +
                   " and nx*ny <= " + std::to_string(kMaxRasterCells)};
     }
+  } else if (req.sampling_case() == v1::GetFieldRequest::kSurface) {
+    const int asked = req.surface().max_triangles();
+    if (asked < 0) return invalid("surface.max_triangles", "must be >= 0 (0 = the default)");
+    if (asked > kMaxSurfaceTriangles) {
+      return {StatusCode::RESOURCE_EXHAUSTED,
+              "surface.max_triangles: at most " + std::to_string(kMaxSurfaceTriangles)};
+    }
+    if (asked > 0) max_triangles = static_cast<std::size_t>(asked);
   }
   if (Status s = result_file(id, &path); !s.ok()) return s;
   ResultReader reader(path);
@@ -260,6 +273,14 @@ Status SimulationService::field(grpc::ServerContext* ctx, const v1::GetFieldRequ
     }
   }
 
+  const int dimension = reader.info().dimension;
+  if (kind.node) kind.components = dimension;  // vectors have the mesh's components
+  if (dimension != 3 && req.sampling_case() == v1::GetFieldRequest::kSurface) {
+    return invalid("surface", "is for 3-D results; this job's is 2-D (use raster or every)");
+  }
+  if (dimension != 3 && req.has_slice()) {
+    return invalid("slice", "is for 3-D results; this job's is 2-D");
+  }
   v1::FieldChunk head;
   auto* header = head.mutable_header();
   header->set_name(req.name());
@@ -267,8 +288,16 @@ Status SimulationService::field(grpc::ServerContext* ctx, const v1::GetFieldRequ
   header->set_time(frame_times[frame]);
   header->set_components(kind.components);
   header->set_units(kind.units);
+  header->set_dimension(dimension);
   std::vector<double> values = reader.field(frame, req.name());
-  if (req.sampling_case() == v1::GetFieldRequest::kRaster) {
+  if (dimension == 3 && (req.sampling_case() == v1::GetFieldRequest::kRaster ||
+                         req.sampling_case() == v1::GetFieldRequest::kSurface)) {
+    if (Status st = field_3d(req, reader, frame, kind.components, kind.node, nx, ny, max_triangles,
+                             values, header);
+        !st.ok()) {
+      return st;
+    }
+  } else if (req.sampling_case() == v1::GetFieldRequest::kRaster) {
     const Mesh mesh = reader.mesh();
     const auto disp = req.name() == "displacement" ? values : reader.field(frame, "displacement");
     if (disp.size() != 2 * mesh.node_count()) {
@@ -315,6 +344,93 @@ Status SimulationService::field(grpc::ServerContext* ctx, const v1::GetFieldRequ
     chunk.mutable_values()->Add(values.begin() + offset, values.begin() + end);
     if (!writer->Write(chunk)) return {StatusCode::CANCELLED, "client went away"};
   }
+  return Status::OK;
+}
+
+Status SimulationService::field_3d(const v1::GetFieldRequest& req, const ResultReader& reader,
+                                   std::size_t frame, int components, bool node_field, int nx,
+                                   int ny, std::size_t max_triangles, std::vector<double>& values,
+                                   v1::FieldHeader* header) const {
+  const Mesh mesh = reader.mesh();
+  const auto disp = req.name() == "displacement" ? values : reader.field(frame, "displacement");
+  const std::size_t nn = mesh.node_count();
+  if (disp.size() != 3 * nn || mesh.z.size() != nn) {
+    return {StatusCode::INTERNAL, "result file: displacement does not match the mesh"};
+  }
+  std::vector<double> x(nn), y(nn), z(nn);
+  for (std::size_t i = 0; i < nn; ++i) {
+    x[i] = mesh.x[i] + disp[3 * i];
+    y[i] = mesh.y[i] + disp[3 * i + 1];
+    z[i] = mesh.z[i] + disp[3 * i + 2];
+  }
+  if (req.sampling_case() == v1::GetFieldRequest::kRaster) {
+    const auto& sl = req.slice();
+    SlicePlane plane;
+    try {
+      plane = req.has_slice()
+                  ? make_slice_plane({sl.px(), sl.py(), sl.pz()}, {sl.nx(), sl.ny(), sl.nz()})
+                  : make_slice_plane({0, 0, 0}, {0, 0, 1});
+    } catch (const std::invalid_argument& e) {
+      return invalid("slice", e.what());
+    }
+    const SliceMesh section =
+        slice_tetrahedra(x, y, z, mesh.tetrahedra, values, components, node_field, plane);
+    if (section.triangles.empty()) {
+      return invalid("slice", "the plane does not cut the deformed body");
+    }
+    RasterBox box;
+    try {
+      values = rasterize(section.u, section.v, section.triangles, section.values, components,
+                         node_field, nx, ny, box);
+    } catch (const std::length_error& e) {
+      return {StatusCode::RESOURCE_EXHAUSTED, e.what()};
+    }
+    header->set_location("raster");
+    header->set_nx(nx);
+    header->set_ny(ny);
+    header->set_x_min(box.x_min);
+    header->set_x_max(box.x_max);
+    header->set_y_min(box.y_min);
+    header->set_y_max(box.y_max);
+    for (int k = 0; k < 3; ++k) {
+      header->add_slice_origin(plane.origin[k]);
+      header->add_slice_u(plane.u[k]);
+      header->add_slice_v(plane.v[k]);
+    }
+    return Status::OK;
+  }
+  // The surface: element fields per boundary face, from the tetrahedron each face bounds.
+  std::vector<double> face_values;
+  if (!node_field) {
+    std::map<std::array<int32_t, 3>, std::size_t> owner;
+    for (std::size_t e = 0; e < mesh.tetrahedra.size(); ++e) {
+      const auto& t = mesh.tetrahedra[e];
+      for (int skip = 0; skip < 4; ++skip) {
+        std::array<int32_t, 3> key{};
+        for (int k = 0, n = 0; k < 4; ++k)
+          if (k != skip) key[n++] = t[k];
+        std::sort(key.begin(), key.end());
+        owner[key] = e;  // a boundary face has one owner; interior ones are never looked up
+      }
+    }
+    const std::size_t nc = static_cast<std::size_t>(components);
+    for (const auto& f : mesh.boundary_faces) {
+      std::array<int32_t, 3> key = f;
+      std::sort(key.begin(), key.end());
+      const std::size_t e = owner.at(key);
+      face_values.insert(face_values.end(), values.begin() + e * nc, values.begin() + (e + 1) * nc);
+    }
+  }
+  const SurfaceMesh surface =
+      decimated_surface(x, y, z, mesh.boundary_faces, node_field ? values : face_values, components,
+                        node_field, max_triangles);
+  std::vector<double> out = surface.xyz;
+  for (const auto& t : surface.triangles) out.insert(out.end(), t.begin(), t.end());
+  out.insert(out.end(), surface.values.begin(), surface.values.end());
+  values.swap(out);
+  header->set_location("surface");
+  header->set_surface_vertices(static_cast<int64_t>(surface.xyz.size() / 3));
+  header->set_surface_triangles(static_cast<int64_t>(surface.triangles.size()));
   return Status::OK;
 }
 

@@ -150,9 +150,13 @@ def _grid_axis(axis) -> "service_pb2.GridAxis":
 
 @dataclass
 class FieldData:
-    """A field frame. `values` is (ny, nx) for scalar rasters, (ny, nx, 2) for vector rasters,
-    (n,) or (n, 2) for node/element samples. Raster cells outside the body are NaN. `extent` is
-    (x_min, x_max, y_min, y_max) in m for rasters, else None.
+    """A field frame. `values` is (ny, nx) for scalar rasters, (ny, nx, d) for vector rasters
+    (d = 2 in 2-D, 3 in 3-D), (n,) or (n, d) for node/element samples. Raster cells outside the
+    body are NaN. `extent` is (x_min, x_max, y_min, y_max) in m for rasters, else None; for a 3-D
+    result's slice these are along the plane's axes `slice_u` and `slice_v` from `slice_origin`
+    (cell (i, j)'s centre: origin + u_i * slice_u + v_j * slice_v). A 3-D "surface" carries the
+    decimated deformed boundary: `vertices` (n, 3) in m, `triangles` (t, 3) vertex indices, and
+    `values` per vertex (node fields) or per triangle (element fields).
 
     Unpacks as ``values, extent = client.field(...)`` and converts with ``np.asarray``.
     """
@@ -166,6 +170,29 @@ class FieldData:
     location: str
     every: int = 1
     header: object = dc_field(default=None, repr=False)
+    dimension: int = 2
+    slice_origin: Optional[Tuple[float, float, float]] = None
+    slice_u: Optional[Tuple[float, float, float]] = None
+    slice_v: Optional[Tuple[float, float, float]] = None
+    vertices: Optional[np.ndarray] = None
+    triangles: Optional[np.ndarray] = None
+
+    def to_xarray(self):
+        """A raster as an xarray.DataArray with coordinates x and y (the slice's u and v in 3-D)
+        in m and the time as an attribute."""
+        import xarray as xr
+        if self.location != "raster":
+            raise ValueError("to_xarray needs a raster (raster=(nx, ny))")
+        ny, nx = self.values.shape[:2]
+        x_min, x_max, y_min, y_max = self.extent
+        coords = {"y": y_min + (np.arange(ny) + 0.5) * (y_max - y_min) / ny,
+                  "x": x_min + (np.arange(nx) + 0.5) * (x_max - x_min) / nx}
+        dims = ("y", "x") + (("component",) if self.values.ndim == 3 else ())
+        attrs = {"units": self.units, "time_s": self.time, "frame": self.frame}
+        if self.slice_origin is not None:
+            attrs.update(slice_origin=self.slice_origin, slice_u=self.slice_u,
+                         slice_v=self.slice_v)
+        return xr.DataArray(self.values, coords=coords, dims=dims, name=self.name, attrs=attrs)
 
     def __iter__(self):
         return iter((self.values, self.extent))
@@ -395,14 +422,25 @@ class Client:
 
     def field(self, job_id: str, name: str, time: Optional[float] = None,
               frame: Optional[int] = None, raster: Optional[Tuple[int, int]] = None,
-              every: Optional[int] = None) -> FieldData:
+              every: Optional[int] = None, slice=None,
+              surface: Optional[int] = None) -> FieldData:
         """A field frame (nearest to `time` in s, or index `frame`; default the last one), either
-        interpolated on an nx x ny raster over the deformed body or every k-th node/element."""
+        interpolated on an nx x ny raster over the deformed body or every k-th node/element.
+        3-D results: the raster samples the plane `slice` = (point, normal) in m (default z = 0);
+        `surface=N` gives the deformed boundary decimated to at most N triangles (0 = the
+        server's default)."""
         if time is not None and frame is not None:
             raise ValueError("give time or frame, not both")
-        if raster is not None and every is not None:
-            raise ValueError("give raster or every, not both")
+        if sum(x is not None for x in (raster, every, surface)) > 1:
+            raise ValueError("give one of raster, every and surface")
         request = service_pb2.GetFieldRequest(id=job_id, name=name)
+        if slice is not None:
+            (px, py, pz), (nx, ny, nz) = slice
+            request.slice.CopyFrom(service_pb2.Slice(px=px, py=py, pz=pz, nx=nx, ny=ny, nz=nz))
+            if raster is None:
+                raster = (256, 256)
+        if surface is not None:
+            request.surface.max_triangles = int(surface)
         if time is not None:
             request.time = time
         if frame is not None:
@@ -435,15 +473,26 @@ class Client:
                                  f"field stream carried {seen} of {values.size} values")
         comps = max(1, header.components)
         extent = None
+        extra = {"dimension": header.dimension or 2}
         if header.location == "raster":
             shape = (header.ny, header.nx) + ((comps,) if comps > 1 else ())
             values = values.reshape(shape)
             extent = (header.x_min, header.x_max, header.y_min, header.y_max)
+            if len(header.slice_origin) == 3:
+                extra.update(slice_origin=tuple(header.slice_origin),
+                             slice_u=tuple(header.slice_u), slice_v=tuple(header.slice_v))
+        elif header.location == "surface":
+            nv, nt = header.surface_vertices, header.surface_triangles
+            extra["vertices"] = values[:3 * nv].reshape(nv, 3)
+            extra["triangles"] = values[3 * nv:3 * (nv + nt)].astype(np.int64).reshape(nt, 3)
+            values = values[3 * (nv + nt):]
+            if comps > 1:
+                values = values.reshape(-1, comps)
         elif comps > 1:
             values = values.reshape(-1, comps)
         return FieldData(values=values, extent=extent, name=header.name, units=header.units,
                          time=header.time, frame=header.frame, location=header.location,
-                         every=max(1, header.every), header=header)
+                         every=max(1, header.every), header=header, **extra)
 
     # -- grids -----------------------------------------------------------------------------------
     def submit_grid(self, base_spec=None, axes: Sequence = (),
