@@ -111,21 +111,6 @@ __attribute__((target_clones("avx512f", "avx2", "default"))) void frame_element_
     element_fields<false>(g, nodes, s, volumetric, kappa, n, mu, ox, oy, fr);
 }
 
-// a[m] += w_k u_k cos(m theta_k), b[m] likewise with sin, over the rim nodes k in order: each
-// mode's sum is the scalar loop's to the bit (built without FMA contraction), the modes side by
-// side in the vector lanes (a scalar loop per mode was a chain of dependent adds, most of a
-// history sample's time).
-__attribute__((target_clones("avx512f", "avx2", "default"))) void fourier_sums(
-    std::size_t nodes, std::size_t modes, const double* weight, const double* u,
-    const double* node_cos, const double* node_sin, double* __restrict a, double* __restrict b) {
-  for (std::size_t k = 0; k < nodes; ++k) {
-    const double wu = weight[k] * u[k];
-    const double *c = node_cos + k * modes, *s = node_sin + k * modes;
-#pragma GCC ivdep
-    for (std::size_t m = 0; m < modes; ++m) a[m] += wu * c[m], b[m] += wu * s[m];
-  }
-}
-
 }  // namespace
 
 PolarFrame polar_frame(const Problem& problem) {
@@ -153,42 +138,16 @@ PolarFrame polar_frame(const Problem& problem) {
 Diagnostics::Diagnostics(const Problem& problem, const ElementGeometry& geometry, int modes)
     : problem_(problem),
       geometry_(geometry),
-      modes_(modes),
       nodal_pressure_(problem.element.formulation == ElementFormulation::kAverageNodalPressure) {
   const Mesh& mesh = problem.mesh;
-  rim_nodes_ = mesh.boundary_nodes;
   const PolarFrame frame = polar_frame(problem);
   origin_ = frame.origin;
   reference_radius_ = frame.reference_radius_m;
-
-  // Rim: reference angles, trapezoidal weights in theta and the Fourier tables.
-  const std::size_t nr = rim_nodes_.size();
-  // Above (N - 1) / 2 a mode is an alias of a lower one: it would report that one's amplitude.
-  modes_ = std::min(modes_, nr >= 3 ? static_cast<int>((nr - 1) / 2) : 0);
-  std::vector<double> theta(nr);
-  rim_ref_radius_.resize(nr);
-  for (std::size_t k = 0; k < nr; ++k) {
-    const double dx = mesh.x[rim_nodes_[k]] - origin_[0], dy = mesh.y[rim_nodes_[k]] - origin_[1];
-    theta[k] = std::atan2(dy, dx);
-    rim_ref_radius_[k] = std::hypot(dx, dy);
-  }
-  rim_weight_.resize(nr);
-  for (std::size_t k = 0; k < nr; ++k) {
-    double span = theta[(k + 1) % nr] - theta[(k + nr - 1) % nr];
-    span = std::remainder(span, kTwoPi);  // wrap into (-pi, pi]
-    if (span < 0) span += kTwoPi;         // the loop is counter-clockwise
-    rim_weight_[k] = 0.5 * span;
-  }
-  const std::size_t count = static_cast<std::size_t>(modes_) + 1;
-  for (auto* v : {&mode_cos_, &mode_sin_, &node_cos_, &node_sin_}) v->resize(count * nr);
-  for (std::size_t m = 0; m < count; ++m) {
-    for (std::size_t k = 0; k < nr; ++k) {
-      const double c = std::cos(static_cast<double>(m) * theta[k]);
-      const double sn = std::sin(static_cast<double>(m) * theta[k]);
-      mode_cos_[m * nr + k] = node_cos_[k * count + m] = c;
-      mode_sin_[m * nr + k] = node_sin_[k * count + m] = sn;
-    }
-  }
+  // The rim: the outer boundary loop (rim_diagnostics.hpp).
+  rim_ =
+      RimRing(mesh.boundary_nodes, mesh.x.data(), mesh.y.data(), origin_, reference_radius_, modes);
+  const std::size_t nr = rim_.nodes().size();
+  const std::vector<int32_t>& rim_nodes = rim_.nodes();
 
   // Centre region: elements whose reference centroid lies within the radius (else nearest).
   const double rc = problem.center_region_radius_m;
@@ -205,11 +164,11 @@ Diagnostics::Diagnostics(const Problem& problem, const ElementGeometry& geometry
   if (center_elements_.empty() && geometry.size() > 0) center_elements_.push_back(nearest_element);
 
   on_rim_node_.assign(mesh.node_count(), 0);
-  for (int32_t i : rim_nodes_) on_rim_node_[i] = 1;
+  for (int32_t i : rim_nodes) on_rim_node_[i] = 1;
 
   std::unordered_set<int64_t> rim_edges;
   for (std::size_t k = 0; k < nr; ++k)
-    rim_edges.insert(edge_key(rim_nodes_[k], rim_nodes_[(k + 1) % nr]));
+    rim_edges.insert(edge_key(rim_nodes[k], rim_nodes[(k + 1) % nr]));
   for (std::size_t e = 0; e < geometry.size(); ++e) {
     const auto& t = mesh.triangles[e];
     if (rim_edges.count(edge_key(t[0], t[1])) || rim_edges.count(edge_key(t[1], t[2])) ||
@@ -271,42 +230,8 @@ void Diagnostics::sample(const NodalView& nodes, const ElementState& s, const Ke
   // energy (average nodal pressure) plus the elements'.
   const double elastic = totals.nodal_energy + totals.element_energy;
 
-  // Rim: radial displacement, velocity and acceleration in the current polar frame.
-  const std::size_t nr = rim_nodes_.size();
-  std::vector<double> ur(nr);
-  double r_min = std::numeric_limits<double>::max(), r_max = 0;
-  double mean_u = 0, mean_v = 0, mean_a = 0;
-  for (std::size_t k = 0; k < nr; ++k) {
-    const int32_t i = rim_nodes_[k];
-    const double dx = nodes.x[i] - origin_[0], dy = nodes.y[i] - origin_[1];
-    const double r = std::sqrt(dx * dx + dy * dy);  // no overflow at a disk's size; hypot is slow
-    const double ex = r > 0 ? dx / r : 0, ey = r > 0 ? dy / r : 0;
-    ur[k] = r - rim_ref_radius_[k];
-    r_min = std::min(r_min, r), r_max = std::max(r_max, r);
-    const double w = rim_weight_[k] / kTwoPi;
-    mean_u += w * ur[k];
-    mean_v += w * (nodes.vx[i] * ex + nodes.vy[i] * ey);
-    mean_a += w * (nodes.ax[i] * ex + nodes.ay[i] * ey);
-  }
-
-  // Fourier amplitudes of u_r(theta) (trapezoidal quadrature on the non-uniform rim), / R0;
-  // u_r rebuilt at the rim nodes from modes 0..kFilteredAbarModes gives the filtered A-bar.
-  std::vector<double> amplitude(modes_ + 1);
-  std::vector<double> ur_filtered(nr, 0.0);
-  std::vector<double> cos_sum(modes_ + 1, 0.0), sin_sum(modes_ + 1, 0.0);
-  fourier_sums(nr, cos_sum.size(), rim_weight_.data(), ur.data(), node_cos_.data(),
-               node_sin_.data(), cos_sum.data(), sin_sum.data());
-  for (int m = 0; m <= modes_; ++m) {
-    const double a = cos_sum[m], b = sin_sum[m];
-    const double* cs = &mode_cos_[m * nr];
-    const double* sn = &mode_sin_[m * nr];
-    const double norm = m == 0 ? 1.0 / kTwoPi : 1.0 / std::numbers::pi;
-    amplitude[m] = norm * std::hypot(a, b) / reference_radius_;
-    if (m <= kFilteredAbarModes)
-      for (std::size_t k = 0; k < nr; ++k) ur_filtered[k] += norm * (a * cs[k] + b * sn[k]);
-  }
-  double uf_min = std::numeric_limits<double>::max(), uf_max = -uf_min;
-  for (double u : ur_filtered) uf_min = std::min(uf_min, u), uf_max = std::max(uf_max, u);
+  // The rim (rim_diagnostics.hpp): A-bar, its mean radial motion, the Fourier modes.
+  RimRing::Sample rim = rim_.sample(nodes.x, nodes.y, nodes.vx, nodes.vy, nodes.ax, nodes.ay);
 
   double center_area = 0, center_stress = 0;
   for (int32_t e : center_elements_) {
@@ -332,14 +257,14 @@ void Diagnostics::sample(const NodalView& nodes, const ElementState& s, const Ke
   h.elastic_energy.push_back(elastic);
   h.dissipated_energy.push_back(dissipated);
   h.external_work.push_back(external_work);
-  h.abar.push_back(nr ? (r_max - r_min) / reference_radius_ : 0);
+  h.abar.push_back(rim.abar);
   h.center_mean_stress.push_back(center_area > 0 ? center_stress / center_area : 0);
-  h.rim_mean_radial_displacement.push_back(mean_u);
-  h.rim_mean_radial_velocity.push_back(mean_v);
-  h.rim_mean_radial_acceleration.push_back(mean_a);
+  h.rim_mean_radial_displacement.push_back(rim.mean_u);
+  h.rim_mean_radial_velocity.push_back(rim.mean_v);
+  h.rim_mean_radial_acceleration.push_back(rim.mean_a);
   h.rim_min_hoop_stress.push_back(min_hoop);
   h.dt.push_back(dt);
-  h.abar_filtered.push_back(nr ? (uf_max - uf_min) / reference_radius_ : 0);
+  h.abar_filtered.push_back(rim.abar_filtered);
   h.max_aspect_ratio.push_back(totals.max_aspect_ratio);
   const bool known = dt_element >= 0 && static_cast<std::size_t>(dt_element) < geometry_.size();
   const std::size_t de = known ? static_cast<std::size_t>(dt_element) : 0;
@@ -356,7 +281,7 @@ void Diagnostics::sample(const NodalView& nodes, const ElementState& s, const Ke
                                           on_rim_node_[geometry_.node2[de]])
                                     ? 1.0
                                     : 0.0);
-  h.modes.push_back(std::move(amplitude));
+  h.modes.push_back(std::move(rim.amplitude));
 }
 
 FieldFrame Diagnostics::frame(const NodalView& nodes, const ElementState& s,

@@ -1,6 +1,6 @@
-// Diagnostics of the current state: history samples (energies, rim and centre quantities,
-// Fourier modes of the rim) and field frames. Called at the history and output intervals,
-// outside the element loop.
+// Diagnostics of the current state of a 2-D run: history samples (energies, the centre, the
+// element that sets the step, aspect ratios, and the rim's figures from rim_diagnostics.hpp) and
+// field frames. Called at the history and output intervals, outside the element loop.
 #pragma once
 
 #include <array>
@@ -9,6 +9,7 @@
 
 #include "element_kernels.hpp"
 #include "model.hpp"
+#include "rim_diagnostics.hpp"
 #include "simulation.hpp"
 
 namespace softshock {
@@ -44,7 +45,7 @@ class Diagnostics {
 
   double reference_radius() const { return reference_radius_; }
   std::array<double, 2> origin() const { return origin_; }
-  const std::vector<int32_t>& rim_nodes() const { return rim_nodes_; }
+  const std::vector<int32_t>& rim_nodes() const { return rim_.nodes(); }
 
   // Appends one sample at time t. Dissipation and external work are accumulated by the
   // integrator and passed in. totals: of the evaluation at these positions, with
@@ -77,16 +78,9 @@ class Diagnostics {
  private:
   const Problem& problem_;
   const ElementGeometry& geometry_;
-  int modes_;
   std::array<double, 2> origin_{};
   double reference_radius_ = 0;
-  std::vector<int32_t> rim_nodes_;           // outer boundary loop
-  std::vector<double> rim_weight_;           // trapezoidal d(theta) weights, sum 2 pi
-  std::vector<double> rim_ref_radius_;       // reference distance from the origin
-  std::vector<double> mode_cos_, mode_sin_;  // (M+1) x rim, row-major by mode
-  // The same tables rim x (M+1), row-major by rim node: the amplitude sums run over the modes
-  // in the inner loop (vectorised) and keep each mode's sum in rim-node order.
-  std::vector<double> node_cos_, node_sin_;
+  RimRing rim_;  // the outer boundary loop
   std::vector<int32_t> center_elements_;
   std::vector<int32_t> rim_elements_;  // elements with an edge on the outer boundary
   std::vector<uint8_t> on_rim_node_;   // 1 for nodes of the outer boundary loop

@@ -13,19 +13,6 @@ namespace {
 
 constexpr double kTwoPi = 2.0 * std::numbers::pi;
 
-// The cos/sin tables node x (M+1), row-major by node.
-void fill_tables(const std::vector<double>& theta, int modes, std::vector<double>& cos_table,
-                 std::vector<double>& sin_table) {
-  const std::size_t count = static_cast<std::size_t>(modes) + 1;
-  cos_table.resize(theta.size() * count);
-  sin_table.resize(theta.size() * count);
-  for (std::size_t k = 0; k < theta.size(); ++k)
-    for (std::size_t m = 0; m < count; ++m) {
-      cos_table[k * count + m] = std::cos(static_cast<double>(m) * theta[k]);
-      sin_table[k * count + m] = std::sin(static_cast<double>(m) * theta[k]);
-    }
-}
-
 }  // namespace
 
 double ElementStress3::von_mises() const {
@@ -36,7 +23,6 @@ double ElementStress3::von_mises() const {
 Diagnostics3::Diagnostics3(const Problem& problem, const Tet4Geometry& geometry, int modes)
     : problem_(problem),
       geometry_(geometry),
-      modes_(modes),
       nodal_pressure_(problem.element.formulation == ElementFormulation::kAverageNodalPressure) {
   const Mesh& mesh = problem.mesh;
   const std::size_t nn = mesh.node_count();
@@ -71,43 +57,29 @@ Diagnostics3::Diagnostics3(const Problem& problem, const Tet4Geometry& geometry,
   }
   reference_radius_ = frame.reference_radius_m;
 
-  // The mid-plane rim: lateral nodes at z_mid, in angle order.
+  // The mid-plane rim: lateral nodes at z_mid, in angle order (rim_diagnostics.hpp).
   const double tol = 1e-6 * reference_radius_;
   std::vector<std::pair<double, int32_t>> rim;
   for (int32_t i : lateral_nodes_)
     if (std::fabs(mesh.z[i] - z_mid_) <= tol)
       rim.emplace_back(std::atan2(mesh.y[i] - origin_[1], mesh.x[i] - origin_[0]), i);
   std::sort(rim.begin(), rim.end());
-  const std::size_t nr = rim.size();
-  modes_ = std::min(modes_, nr >= 3 ? static_cast<int>((nr - 1) / 2) : 0);
-  std::vector<double> theta(nr);
-  for (std::size_t k = 0; k < nr; ++k) {
-    rim_nodes_.push_back(rim[k].second);
-    theta[k] = rim[k].first;
-    rim_ref_radius_.push_back(
-        std::hypot(mesh.x[rim[k].second] - origin_[0], mesh.y[rim[k].second] - origin_[1]));
-  }
-  rim_weight_.resize(nr);
-  for (std::size_t k = 0; k < nr; ++k) {
-    double span = std::remainder(theta[(k + 1) % nr] - theta[(k + nr - 1) % nr], kTwoPi);
-    if (span < 0) span += kTwoPi;
-    rim_weight_[k] = 0.5 * span;
-  }
-  fill_tables(theta, modes_, rim_cos_, rim_sin_);
-
-  // The lateral surface's weights: area / (R0 H) with H = area / (2 pi R0), so they sum to 2 pi.
-  std::vector<double> lateral_theta;
-  for (int32_t i : lateral_nodes_) {
-    lateral_theta.push_back(std::atan2(mesh.y[i] - origin_[1], mesh.x[i] - origin_[0]));
-    lateral_ref_radius_.push_back(std::hypot(mesh.x[i] - origin_[0], mesh.y[i] - origin_[1]));
-    lateral_weight_.push_back(kTwoPi * lateral_area[i] / lateral_total);
-  }
-  fill_tables(lateral_theta, modes_, lateral_cos_, lateral_sin_);
+  std::vector<int32_t> rim_nodes;
+  for (const auto& [theta, i] : rim) rim_nodes.push_back(i);
+  mid_plane_ = RimRing(rim_nodes, mesh.x.data(), mesh.y.data(), origin_, reference_radius_, modes);
+  // The lateral surface, weighted by area / (R0 H) with H = area / (2 pi R0): weights summing to
+  // 2 pi, the modes averaged over the thickness.
+  std::vector<double> lateral_weight;
+  for (int32_t i : lateral_nodes_)
+    lateral_weight.push_back(kTwoPi * lateral_area[i] / lateral_total);
+  lateral_ =
+      RimRing(lateral_nodes_, mesh.x.data(), mesh.y.data(), origin_, reference_radius_,
+              mid_plane_.nodes().empty() ? modes : mid_plane_.modes(), std::move(lateral_weight));
 
   on_rim_node_.assign(nn, 0);
   for (int32_t i : lateral_nodes_) on_rim_node_[i] = 1;
   std::vector<uint8_t> mid_rim(nn, 0);
-  for (int32_t i : rim_nodes_) mid_rim[i] = 1;
+  for (int32_t i : mid_plane_.nodes()) mid_rim[i] = 1;
 
   // The centre: elements whose reference centroid lies within the radius of (origin, z_mid).
   const double rc = problem.center_region_radius_m;
@@ -192,67 +164,17 @@ double Diagnostics3::kinetic_energy(const NodalView3& nodes) const {
   return energy;
 }
 
-std::vector<double> Diagnostics3::amplitudes(const std::vector<double>& weight,
-                                             const std::vector<double>& u,
-                                             const std::vector<double>& cos_table,
-                                             const std::vector<double>& sin_table,
-                                             std::vector<double>* ur_filtered) const {
-  const std::size_t count = static_cast<std::size_t>(modes_) + 1, nodes = u.size();
-  std::vector<double> a(count, 0.0), b(count, 0.0), amplitude(count);
-  for (std::size_t k = 0; k < nodes; ++k) {
-    const double wu = weight[k] * u[k];
-    for (std::size_t m = 0; m < count; ++m)
-      a[m] += wu * cos_table[k * count + m], b[m] += wu * sin_table[k * count + m];
-  }
-  if (ur_filtered) ur_filtered->assign(nodes, 0.0);
-  for (std::size_t m = 0; m < count; ++m) {
-    const double norm = m == 0 ? 1.0 / kTwoPi : 1.0 / std::numbers::pi;
-    amplitude[m] = norm * std::hypot(a[m], b[m]) / reference_radius_;
-    if (ur_filtered && m <= static_cast<std::size_t>(kFilteredAbarModes))
-      for (std::size_t k = 0; k < nodes; ++k)
-        (*ur_filtered)[k] +=
-            norm * (a[m] * cos_table[k * count + m] + b[m] * sin_table[k * count + m]);
-  }
-  return amplitude;
-}
-
 void Diagnostics3::sample(const NodalView3& nodes, const Tet4State& s, const KernelView& kernel,
                           const KernelTotals& totals, double t, double dt, double dissipated,
                           double external_work, History& h) const {
   const double kinetic = kinetic_energy(nodes);
   const double elastic = totals.nodal_energy + totals.element_energy;
 
-  // The mid-plane rim, as the 2-D disk's outer loop.
-  const std::size_t nr = rim_nodes_.size();
-  std::vector<double> ur(nr);
-  double r_min = std::numeric_limits<double>::max(), r_max = 0;
-  double mean_u = 0, mean_v = 0, mean_a = 0;
-  for (std::size_t k = 0; k < nr; ++k) {
-    const int32_t i = rim_nodes_[k];
-    const double dx = nodes.x[0][i] - origin_[0], dy = nodes.x[1][i] - origin_[1];
-    const double r = std::sqrt(dx * dx + dy * dy);
-    const double ex = r > 0 ? dx / r : 0, ey = r > 0 ? dy / r : 0;
-    ur[k] = r - rim_ref_radius_[k];
-    r_min = std::min(r_min, r), r_max = std::max(r_max, r);
-    const double w = rim_weight_[k] / kTwoPi;
-    mean_u += w * ur[k];
-    mean_v += w * (nodes.v[0][i] * ex + nodes.v[1][i] * ey);
-    mean_a += w * (nodes.a[0][i] * ex + nodes.a[1][i] * ey);
-  }
-  std::vector<double> ur_filtered;
-  std::vector<double> amplitude = amplitudes(rim_weight_, ur, rim_cos_, rim_sin_, &ur_filtered);
-  double uf_min = std::numeric_limits<double>::max(), uf_max = -uf_min;
-  for (double u : ur_filtered) uf_min = std::min(uf_min, u), uf_max = std::max(uf_max, u);
-  // The lateral surface's modes, averaged over the thickness.
-  std::vector<double> ul(lateral_nodes_.size());
-  for (std::size_t k = 0; k < lateral_nodes_.size(); ++k) {
-    const int32_t i = lateral_nodes_[k];
-    ul[k] =
-        std::hypot(nodes.x[0][i] - origin_[0], nodes.x[1][i] - origin_[1]) - lateral_ref_radius_[k];
-  }
-  std::vector<double> amplitude_z =
-      lateral_nodes_.empty() ? std::vector<double>(static_cast<std::size_t>(modes_) + 1, 0.0)
-                             : amplitudes(lateral_weight_, ul, lateral_cos_, lateral_sin_, nullptr);
+  // The mid-plane rim, as the 2-D disk's outer loop, and the modes over the lateral surface.
+  RimRing::Sample rim =
+      mid_plane_.sample(nodes.x[0], nodes.x[1], nodes.v[0], nodes.v[1], nodes.a[0], nodes.a[1]);
+  RimRing::Sample lateral =
+      lateral_.sample(nodes.x[0], nodes.x[1], nodes.v[0], nodes.v[1], nodes.a[0], nodes.a[1]);
 
   double center_volume = 0, center_stress = 0;
   for (int32_t e : center_elements_) {
@@ -278,14 +200,14 @@ void Diagnostics3::sample(const NodalView3& nodes, const Tet4State& s, const Ker
   h.elastic_energy.push_back(elastic);
   h.dissipated_energy.push_back(dissipated);
   h.external_work.push_back(external_work);
-  h.abar.push_back(nr ? (r_max - r_min) / reference_radius_ : 0);
+  h.abar.push_back(rim.abar);
   h.center_mean_stress.push_back(center_volume > 0 ? center_stress / center_volume : 0);
-  h.rim_mean_radial_displacement.push_back(mean_u);
-  h.rim_mean_radial_velocity.push_back(mean_v);
-  h.rim_mean_radial_acceleration.push_back(mean_a);
+  h.rim_mean_radial_displacement.push_back(rim.mean_u);
+  h.rim_mean_radial_velocity.push_back(rim.mean_v);
+  h.rim_mean_radial_acceleration.push_back(rim.mean_a);
   h.rim_min_hoop_stress.push_back(min_hoop);
   h.dt.push_back(dt);
-  h.abar_filtered.push_back(nr ? (uf_max - uf_min) / reference_radius_ : 0);
+  h.abar_filtered.push_back(rim.abar_filtered);
   h.max_aspect_ratio.push_back(totals.max_aspect_ratio);
   const int64_t de_signed = totals.min_step_element;
   const bool known = de_signed >= 0 && static_cast<std::size_t>(de_signed) < geometry_.size();
@@ -312,8 +234,10 @@ void Diagnostics3::sample(const NodalView3& nodes, const Tet4State& s, const Ker
   h.dt_element_aspect_ratio.push_back(de_aspect);
   h.dt_element_j.push_back(de_j);
   h.dt_element_on_rim.push_back(de_on_rim ? 1.0 : 0.0);
-  h.modes.push_back(std::move(amplitude));
-  h.modes_z_mean.push_back(std::move(amplitude_z));
+  // Both tables the same width (a lateral ring of fewer nodes than the mid-plane's: padded).
+  lateral.amplitude.resize(rim.amplitude.size(), 0.0);
+  h.modes.push_back(std::move(rim.amplitude));
+  h.modes_z_mean.push_back(std::move(lateral.amplitude));
 }
 
 FieldFrame Diagnostics3::frame(const NodalView3& nodes, const Tet4State& s,

@@ -13,6 +13,7 @@
 
 #include "diagnostics.hpp"
 #include "model.hpp"
+#include "rim_diagnostics.hpp"
 #include "simulation.hpp"
 #include "tet4_kernels.hpp"
 
@@ -39,7 +40,7 @@ class Diagnostics3 {
 
   double reference_radius() const { return reference_radius_; }
   // The mid-plane rim's nodes in angle order, and every lateral-surface node.
-  const std::vector<int32_t>& rim_nodes() const { return rim_nodes_; }
+  const std::vector<int32_t>& rim_nodes() const { return mid_plane_.nodes(); }
   const std::vector<int32_t>& lateral_nodes() const { return lateral_nodes_; }
 
   void sample(const NodalView3& nodes, const Tet4State& elements, const KernelView& kernel,
@@ -55,25 +56,15 @@ class Diagnostics3 {
                                 const KernelView& kernel, std::size_t e) const;
 
  private:
-  // Fourier amplitudes / R0 of u over nodes with weights w (sum 2 pi) at the angles' tables.
-  std::vector<double> amplitudes(const std::vector<double>& weight, const std::vector<double>& u,
-                                 const std::vector<double>& cos_table,
-                                 const std::vector<double>& sin_table,
-                                 std::vector<double>* ur_filtered) const;
-
   const Problem& problem_;
   const Tet4Geometry& geometry_;
-  int modes_;
   std::array<double, 2> origin_{};
   double z_mid_ = 0;
   double reference_radius_ = 0;
   bool nodal_pressure_ = false;
-  // The mid-plane rim: nodes, reference radius, trapezoidal weights in theta (sum 2 pi), and the
-  // cos/sin tables (rim x (M+1)); the lateral surface: nodes, area weights (sum 2 pi), tables.
-  std::vector<int32_t> rim_nodes_;
-  std::vector<double> rim_ref_radius_, rim_weight_, rim_cos_, rim_sin_;
+  RimRing mid_plane_;  // the lateral nodes at z_mid, in angle order
+  RimRing lateral_;    // every lateral node, weighted by its share of the lateral area
   std::vector<int32_t> lateral_nodes_;
-  std::vector<double> lateral_ref_radius_, lateral_weight_, lateral_cos_, lateral_sin_;
   std::vector<int32_t> center_elements_;
   std::vector<int32_t> rim_elements_;  // elements with a corner on the mid-plane rim
   std::vector<uint8_t> on_rim_node_;   // 1 for nodes of the lateral surface

@@ -61,8 +61,8 @@ SliceMesh slice_tetrahedra(const std::vector<double>& x, const std::vector<doubl
   // Signed distance of every node from the plane (NaN for a non-finite node).
   std::vector<double> d(x.size());
   for (std::size_t i = 0; i < x.size(); ++i)
-    d[i] = dot({x[i] - plane.origin[0], y[i] - plane.origin[1], z[i] - plane.origin[2]},
-               plane.normal);
+    d[i] =
+        dot({x[i] - plane.origin[0], y[i] - plane.origin[1], z[i] - plane.origin[2]}, plane.normal);
   SliceMesh out;
   // One section vertex per cut edge, shared by the tetrahedra around it.
   std::unordered_map<int64_t, int32_t> vertex_of_edge;
@@ -195,8 +195,8 @@ SurfaceMesh decimated_surface(const std::vector<double>& x, const std::vector<do
         t[k] = id[i];
       }
       s.triangles.push_back(t);
-      if (!node_field) s.values.insert(s.values.end(), values.begin() + f * nc,
-                                       values.begin() + (f + 1) * nc);
+      if (!node_field)
+        s.values.insert(s.values.end(), values.begin() + f * nc, values.begin() + (f + 1) * nc);
     }
     return s;
   }

@@ -16,16 +16,17 @@ struct SlicePlane {
   std::array<double, 3> origin{}, normal{}, u{}, v{};
 };
 // Throws std::invalid_argument for a zero or non-finite normal or a non-finite point.
-SlicePlane make_slice_plane(const std::array<double, 3>& point, const std::array<double, 3>& normal);
+SlicePlane make_slice_plane(const std::array<double, 3>& point,
+                            const std::array<double, 3>& normal);
 
 // The section of the tetrahedra by the plane, as triangles in (u, v) with the field on them:
 // node fields interpolated linearly to each cut edge's point, element fields constant on each
 // tetrahedron's section (a triangle or a quadrilateral split in two). `values` has `components`
 // per node (node_field) or per tetrahedron.
 struct SliceMesh {
-  std::vector<double> u, v;                        // section vertices
-  std::vector<std::array<int32_t, 3>> triangles;   // section triangles
-  std::vector<double> values;                      // per vertex (node fields) or per triangle
+  std::vector<double> u, v;                       // section vertices
+  std::vector<std::array<int32_t, 3>> triangles;  // section triangles
+  std::vector<double> values;                     // per vertex (node fields) or per triangle
 };
 SliceMesh slice_tetrahedra(const std::vector<double>& x, const std::vector<double>& y,
                            const std::vector<double>& z,
