@@ -3,7 +3,11 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <fstream>
+#include <string>
+#include <vector>
 
+#include "softshock/v1/spec.pb.h"
 #include "solver/model.hpp"
 #include "solver/run_spec.hpp"
 
@@ -167,6 +171,34 @@ TEST(RunSpec, ThreeDimensionalGeometries) {
     EXPECT_EQ(fixed_xy, std::string(faces) == "BONDED" ? on_faces : 0u) << faces;
     EXPECT_DOUBLE_EQ(p.reference_radius_m, 90e-6);
   }
+}
+
+// The README's JSON blocks are specs a reader will copy: each parses with the client's strict
+// parser and validates, and the first -- "every default, written out" -- is the defaults.
+TEST(RunSpec, TheReadmesSpecsParseAndTheDefaultsBlockIsTheDefaults) {
+  std::ifstream in(std::string(SOFTSHOCK_SOURCE_DIR) + "/README.md");
+  ASSERT_TRUE(in) << "README.md not found under " << SOFTSHOCK_SOURCE_DIR;
+  std::vector<std::string> blocks;
+  std::string line, block;
+  bool inside = false;
+  while (std::getline(in, line)) {
+    if (!inside && line.rfind("```json", 0) == 0) {
+      inside = true, block.clear();
+    } else if (inside && line.rfind("```", 0) == 0) {
+      inside = false, blocks.push_back(block);
+    } else if (inside) {
+      block += line + "\n";
+    }
+  }
+  ASSERT_GE(blocks.size(), 2u) << "the defaults block and the 3-D example";
+  for (const auto& json : blocks) {
+    SCOPED_TRACE(json);
+    v1::RunSpec spec;
+    ASSERT_NO_THROW(spec = parse_spec_json(json));
+    EXPECT_NO_THROW(validate_spec(with_defaults(spec)));
+  }
+  EXPECT_EQ(spec_to_json(normalize_spec(parse_spec_json(blocks.front()))),
+            spec_to_json(normalize_spec(parse_spec_json("{}"))));
 }
 
 TEST(RunSpec, MalformedJsonAndUnknownFieldsAreRejected) {
