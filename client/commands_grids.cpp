@@ -46,6 +46,7 @@ void print_grid(const v1::Grid& g) {
   kv.add("id", g.id());
   kv.add("name", g.name());
   kv.add("state", state_name(g.state()));
+  kv.add("owner", g.owner().empty() ? "-" : g.owner());
   kv.add("progress", fmt_num(g.progress() * 100.0, 4) + " %");
   kv.add("points", grid_counts_text(g));
   std::string shape;
@@ -233,10 +234,11 @@ int grid_reduce(const GlobalOptions& g, const ParsedArgs& a) {
   return kExitOk;
 }
 
-int grid_list(const GlobalOptions& g, const ParsedArgs&) {
+int grid_list(const GlobalOptions& g, const ParsedArgs& a) {
   Connection conn(g);
   v1::ListGridsRequest request;
   request.set_page_size(1000);
+  request.set_owner(owner_filter(conn, a));
   v1::ListGridsResponse all;
   for (;;) {
     v1::ListGridsResponse page;
@@ -255,9 +257,10 @@ int grid_list(const GlobalOptions& g, const ParsedArgs&) {
     std::string axes;
     for (const auto& axis : grid.axes()) axes += (axes.empty() ? "" : " x ") + axis.name();
     rows.push_back({grid.id(), state_name(grid.state()), fmt_num(grid.progress() * 100.0, 3) + "%",
-                    std::to_string(grid.point_count()), axes, fmt_timestamp(grid.create_time())});
+                    std::to_string(grid.point_count()), axes,
+                    grid.owner().empty() ? "-" : grid.owner(), fmt_timestamp(grid.create_time())});
   }
-  print_table(stdout, {"ID", "STATE", "PROGRESS", "POINTS", "AXES", "CREATED"}, rows);
+  print_table(stdout, {"ID", "STATE", "PROGRESS", "POINTS", "AXES", "OWNER", "CREATED"}, rows);
   return kExitOk;
 }
 
@@ -357,6 +360,7 @@ int cmd_query(const GlobalOptions& g, const ParsedArgs& a) {
   if (limit < 0) usage_error("--limit: must be >= 0 (0 = no limit)");
 
   Connection conn(g);
+  request.set_owner(owner_filter(conn, a));
   const auto all = collect_pages<v1::QueryJobsRequest, v1::QueryJobsResponse>(
       conn, request, limit,
       [&](grpc::ClientContext& ctx, const v1::QueryJobsRequest& r, v1::QueryJobsResponse& page) {
@@ -382,7 +386,8 @@ int cmd_query(const GlobalOptions& g, const ParsedArgs& a) {
                                            "energy_injected",
                                            "grid_id",
                                            "grid_index",
-                                           "reused_from"};
+                                           "reused_from",
+                                           "owner"};
   std::vector<std::vector<std::string>> rows;
   for (const auto& q : all.jobs()) {
     const auto& gr = q.groups();
@@ -398,7 +403,8 @@ int cmd_query(const GlobalOptions& g, const ParsedArgs& a) {
          has ? num(s.energy_injected()) : (csv ? "" : "-"),
          q.job().grid_id().empty() ? (csv ? "" : "-") : q.job().grid_id(),
          q.job().grid_id().empty() ? (csv ? "" : "-") : std::to_string(q.job().grid_index()),
-         q.job().reused_from().empty() ? (csv ? "" : "-") : q.job().reused_from()});
+         q.job().reused_from().empty() ? (csv ? "" : "-") : q.job().reused_from(),
+         q.job().owner().empty() ? (csv ? "" : "-") : q.job().owner()});
   }
   if (csv) {
     // Cells joined one by one (GCC 12 flags `"," + std::string` in a loop with a false

@@ -58,6 +58,7 @@ void print_job(const v1::Job& job) {
   kv.add("id", job.id());
   kv.add("name", job.name());
   kv.add("state", state_name(job.state()));
+  kv.add("owner", job.owner().empty() ? "-" : job.owner());
   const auto& p = job.progress();
   std::string progress =
       fmt_num(p.fraction() * 100.0, 4) + " %  (t = " + fmt_num(p.simulated_time() * 1e9, 5) +
@@ -230,6 +231,7 @@ int cmd_list(const GlobalOptions& g, const ParsedArgs& a) {
   if (limit < 0) usage_error("--limit: must be >= 0 (0 = no limit)");
 
   Connection conn(g);
+  request.set_owner(owner_filter(conn, a));
   const auto all = collect_pages<v1::ListJobsRequest, v1::ListJobsResponse>(
       conn, request, limit,
       [&](grpc::ClientContext& ctx, const v1::ListJobsRequest& r, v1::ListJobsResponse& page) {
@@ -244,10 +246,11 @@ int cmd_list(const GlobalOptions& g, const ParsedArgs& a) {
   for (const auto& job : all.jobs()) {
     std::string when = fmt_timestamp(job.create_time());
     rows.push_back({job.id(), state_name(job.state()),
-                    fmt_num(job.progress().fraction() * 100.0, 3) + "%", when,
+                    fmt_num(job.progress().fraction() * 100.0, 3) + "%",
+                    job.owner().empty() ? "-" : job.owner(), when,
                     job.labels().empty() ? "-" : join_labels(job.labels())});
   }
-  print_table(stdout, {"ID", "STATE", "PROGRESS", "CREATED", "LABELS"}, rows);
+  print_table(stdout, {"ID", "STATE", "PROGRESS", "OWNER", "CREATED", "LABELS"}, rows);
   if (!all.next_page_token().empty()) {
     std::fprintf(stderr, "softshock: list: more jobs than --limit %lld; raise it to see them\n",
                  static_cast<long long>(limit));
@@ -362,6 +365,38 @@ int cmd_summary(const GlobalOptions& g, const ParsedArgs& a) {
   kv.add("rim reflections", rims.empty() ? "none" : rims + " ns");
   kv.add("dt range", fmt_num(s.min_dt() * 1e9, 4) + " .. " + fmt_ns(s.max_dt()));
   kv.print(stdout);
+  return kExitOk;
+}
+
+std::string owner_filter(Connection& conn, const ParsedArgs& a) {
+  const auto owner = a.get("owner");
+  if (owner && a.has("mine")) usage_error("--owner and --mine: give one of them");
+  if (owner) {
+    if (owner->empty()) usage_error("--owner: expects a user name");
+    return *owner;
+  }
+  if (!a.has("mine")) return "";
+  v1::Caller caller;
+  conn.unary([&](grpc::ClientContext& ctx) {
+    return conn.service().GetCaller(&ctx, v1::GetCallerRequest(), &caller);
+  });
+  return caller.user();
+}
+
+int cmd_whoami(const GlobalOptions& g, const ParsedArgs&) {
+  Connection conn(g);
+  v1::Caller caller;
+  conn.unary([&](grpc::ClientContext& ctx) {
+    return conn.service().GetCaller(&ctx, v1::GetCallerRequest(), &caller);
+  });
+  if (g.json) {
+    std::printf("%s\n", to_json(caller).c_str());
+  } else {
+    KeyValues kv;
+    kv.add("user", caller.user());
+    kv.add("role", caller.role());
+    kv.print(stdout);
+  }
   return kExitOk;
 }
 

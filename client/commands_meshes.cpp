@@ -35,10 +35,10 @@ v1::Mesh upload(Connection& conn, const std::string& path) {
 }
 
 void print_mesh(const v1::Mesh& m) {
-  std::printf("%s  %8lld elements  %8lld nodes  %10lld bytes  %s  %s\n", m.id().c_str(),
+  std::printf("%s  %8lld elements  %8lld nodes  %10lld bytes  %s  %-12s  %s\n", m.id().c_str(),
               static_cast<long long>(m.elements()), static_cast<long long>(m.nodes()),
               static_cast<long long>(m.size_bytes()), fmt_timestamp(m.create_time()).c_str(),
-              m.file_name().c_str());
+              m.owner().empty() ? "-" : m.owner().c_str(), m.file_name().c_str());
 }
 
 }  // namespace
@@ -76,9 +76,10 @@ int cmd_mesh(const GlobalOptions& g, const ParsedArgs& a) {
     return kExitOk;
   }
   if (sub == "list") {
-    need(1, "list");
+    need(1, "list [--owner USER | --mine]");
     Connection conn(g);
     v1::ListMeshesRequest request;
+    request.set_owner(owner_filter(conn, a));
     auto all = collect_pages<v1::ListMeshesRequest, v1::ListMeshesResponse>(
         conn, request, 0,
         [&](grpc::ClientContext& ctx, const v1::ListMeshesRequest& r, v1::ListMeshesResponse& p) {

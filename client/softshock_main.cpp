@@ -34,14 +34,26 @@ const std::vector<Command>& commands() {
       {"status", "ID", "show a job", {}, 1, 1, cmd_status},
       {"watch", "ID", "follow a job to its end (exit 0 only if it SUCCEEDED)", {}, 1, 1, cmd_watch},
       {"list",
-       "[--state S] [--label k=v] [--limit N]",
-       "list jobs, newest first (--limit 0 = all; default 100)",
-       {{"state", true}, {"label", true}, {"limit", true}},
+       "[--state S] [--label k=v] [--owner USER | --mine] [--limit N]",
+       "list jobs, newest first (--limit 0 = all; default 100); --mine: your own",
+       {{"state", true}, {"label", true}, {"owner", true}, {"mine", false}, {"limit", true}},
        0,
        0,
        cmd_list},
-      {"cancel", "ID", "cancel a queued or running job", {}, 1, 1, cmd_cancel},
-      {"delete", "ID", "delete a finished job and its results", {}, 1, 1, cmd_delete},
+      {"cancel",
+       "ID",
+       "cancel a queued or running job (your own; an admin: any)",
+       {},
+       1,
+       1,
+       cmd_cancel},
+      {"delete",
+       "ID",
+       "delete a job and its results (your own; an admin: any)",
+       {},
+       1,
+       1,
+       cmd_delete},
       {"summary",
        "ID",
        "the run's figures (energies, A-bar, modes, shock times)",
@@ -85,7 +97,7 @@ const std::vector<Command>& commands() {
       {"grid",
        "submit GRID.json [--wait] [--label k=v]... [--priority N] [--request-id ID] "
        "[--recompute]\n"
-       "                 | status ID | wait ID | list | cancel ID\n"
+       "                 | status ID | wait ID | list [--owner USER | --mine] | cancel ID\n"
        "                 | reduce ID [--quantity Q] [--tbar T] [--csv] [--png FILE]",
        "parameter grids: submit (a base spec x 1-3 axes), follow, cancel, reduce to a table,\n"
        "           CSV or heat map (quantities: max_abar_first_cycle, max_abar, abar_end,\n"
@@ -101,22 +113,24 @@ const std::vector<Command>& commands() {
         {"quantity", true},
         {"tbar", true},
         {"csv", false},
-        {"png", true}},
+        {"png", true},
+        {"owner", true},
+        {"mine", false}},
        1,
        2,
        cmd_grid},
       {"mesh",
-       "upload FILE.msh | list | delete ID",
+       "upload FILE.msh | list [--owner USER | --mine] | delete ID",
        "meshes on the daemon for geometry.mesh_id (upload prints the id; the same bytes give\n"
        "           the same id). submit and grid submit upload a local geometry.mesh_file "
        "themselves",
-       {},
+       {{"owner", true}, {"mine", false}},
        1,
        2,
        cmd_mesh},
       {"query",
-       "[--where 'NAME OP VALUE']... [--state S] [--grid ID] [--order-by 'NAME [desc]'] "
-       "[--limit N] [--csv]",
+       "[--where 'NAME OP VALUE']... [--state S] [--grid ID] [--owner USER | --mine]\n"
+       "                 [--order-by 'NAME [desc]'] [--limit N] [--csv]",
        "catalogued jobs whose groups / summary figures pass filters, e.g. --where 'pbar=0.5..1.5'\n"
        "           --where 'gamma>6' --where 'max_abar_first_cycle>0.01' (names: pbar, "
        "tbar_pulse,\n"
@@ -128,10 +142,13 @@ const std::vector<Command>& commands() {
         {"grid", true},
         {"order-by", true},
         {"limit", true},
-        {"csv", false}},
+        {"csv", false},
+        {"owner", true},
+        {"mine", false}},
        0,
        0,
        cmd_query},
+      {"whoami", "", "the user and role your token names on the daemon", {}, 0, 0, cmd_whoami},
       {"health",
        "[--service NAME]",
        "grpc.health.v1 check (exit 0 when SERVING)",

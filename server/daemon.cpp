@@ -1,6 +1,7 @@
 #include "server/daemon.hpp"
 
 #include <fcntl.h>
+#include <google/protobuf/stubs/logging.h>
 #include <grpcpp/ext/proto_server_reflection_plugin.h>
 #include <grpcpp/grpcpp.h>
 #include <grpcpp/health_check_service_interface.h>
@@ -21,6 +22,7 @@
 #include "server/jobs/scheduler.hpp"
 #include "server/jobs/slurm_executor.hpp"
 #include "server/log.hpp"
+#include "server/policy/users.hpp"
 #include "server/store/catalogue.hpp"
 #include "server/transport/auth.hpp"
 #include "server/transport/health_warnings.hpp"
@@ -43,6 +45,20 @@ std::string read_file(const std::string& path, const char* what) {
   std::ostringstream s;
   s << in.rdbuf();
   return s.str();
+}
+
+// What the protobuf library logs -- a request with invalid UTF-8 in a string field, say: a client
+// can make it log at will, so it goes through a rate limit (and our log's format). Unauthenticated
+// calls never get this far (transport/auth.hpp).
+void protobuf_log(google::protobuf::LogLevel level, const char* file, int line,
+                  const std::string& message) {
+  static LogRateLimit limit(20, 1);
+  const LogLevel ours = level >= google::protobuf::LOGLEVEL_ERROR     ? LogLevel::kError
+                        : level == google::protobuf::LOGLEVEL_WARNING ? LogLevel::kWarning
+                                                                      : LogLevel::kInfo;
+  log_limited(limit, ours,
+              "protobuf " + log_field(file, 80) + ":" + std::to_string(line) + ": " +
+                  std::string(message.substr(0, 300)));
 }
 
 // tmp + rename: a test polling the file never reads a partial number.
@@ -134,9 +150,8 @@ Daemon::Daemon(DaemonConfig config) : impl_(std::make_unique<Impl>()) {
   d.config = config;
   d.lock_data_dir();
 
-  std::string token;
-  if (!config.token_file.empty()) token = read_token_file(config.token_file);
-  d.auth = std::make_unique<Authenticator>(token);
+  d.auth = std::make_unique<Authenticator>(
+      load_users(config.token_file, config.token_user, config.users_file));
 
   d.catalogue =
       std::make_unique<Catalogue>((fs::path(config.data_dir) / "catalogue.sqlite").string());
@@ -151,6 +166,7 @@ Daemon::Daemon(DaemonConfig config) : impl_(std::make_unique<Impl>()) {
   rc.admission.max_steps = config.max_steps;
   rc.admission.max_memory_bytes = config.max_job_memory_bytes;
   rc.admission.max_disk_bytes = config.max_job_disk_bytes;
+  rc.min_free_bytes = config.min_free_bytes;
   rc.mesher = find_mesher();
   if (rc.mesher.empty()) {
     d.setup_warnings.push_back(
@@ -209,9 +225,12 @@ Daemon::Daemon(DaemonConfig config) : impl_(std::make_unique<Impl>()) {
   sc.limits = rc.limits;
   sc.admission = rc.admission;
   sc.max_streams = config.max_streams;
+  sc.quotas = config.quotas;
   MeshStoreLimits store_limits;
   store_limits.max_bytes = kMaxMeshUploadBytes;
   store_limits.max_elements = rc.limits.max_elements;
+  store_limits.min_free_bytes = config.min_free_bytes;
+  store_limits.quotas = config.quotas;
   d.meshes = std::make_unique<MeshStore>(d.runner->meshes_dir(), store_limits,
                                          mesh_validator_in_child(rc.mesher, MeshCheckLimits{}));
   d.service = std::make_unique<SimulationService>(sc, *d.catalogue, *d.scheduler, d.events,
@@ -227,10 +246,21 @@ Daemon::Daemon(DaemonConfig config) : impl_(std::make_unique<Impl>()) {
            " max-elements=", config.max_elements, " max-end-time=", config.max_end_time_s,
            " max-wall-time=", config.max_wall_time_s, " max-attempts=", config.max_attempts,
            " executor=", config.executor, " auth=", d.auth->enabled() ? "bearer-token" : "none",
-           " tls=", config.tls_cert.empty() ? "off" : "on",
+           " users=", d.auth->user_count(), " tls=", config.tls_cert.empty() ? "off" : "on",
            " catalogue-schema=", d.catalogue->schema_version());
   log_info("catalogue:", counts.str().empty() ? " empty" : counts.str(), "; ", queued.size(),
            " job(s) queued");
+  if (!d.catalogue->room_held()) {
+    log_warning("the disk lacks ", kCatalogueRoomBytes >> 20,
+                " MiB for the catalogue's reserved room; deletions on a full disk may fail "
+                "until space is freed");
+  }
+}
+
+void Daemon::reload_users() {
+  Impl& d = *impl_;
+  d.auth->replace(load_users(d.config.token_file, d.config.token_user, d.config.users_file));
+  log_info("users reloaded: ", d.auth->user_count(), " user(s)");
 }
 
 Daemon::~Daemon() {
@@ -244,15 +274,13 @@ void Daemon::start() {
   // health.proto into the descriptor pool, so reflection can describe grpc.health.v1.Health.
   (void)grpc::health::v1::HealthCheckRequest::descriptor();
   grpc::reflection::InitProtoReflectionServerBuilderPlugin();
-  std::shared_ptr<grpc::ServerCredentials> creds;
-  if (!d.config.tls_cert.empty()) {
-    grpc::SslServerCredentialsOptions ssl;
-    ssl.pem_key_cert_pairs.push_back(
-        {read_file(d.config.tls_key, "TLS key"), read_file(d.config.tls_cert, "TLS certificate")});
-    creds = grpc::SslServerCredentials(ssl);
-  } else {
-    creds = grpc::InsecureServerCredentials();
-  }
+  google::protobuf::SetLogHandler(&protobuf_log);
+  // The token check runs in gRPC's auth filter, before a call reaches a handler (auth.hpp).
+  std::shared_ptr<grpc::ServerCredentials> creds =
+      d.config.tls_cert.empty()
+          ? d.auth->credentials()
+          : d.auth->credentials(read_file(d.config.tls_key, "TLS key"),
+                                read_file(d.config.tls_cert, "TLS certificate"));
   grpc::ServerBuilder builder;
   // gRPC sets SO_REUSEPORT by default, which lets a second daemon bind the same port and
   // silently share its traffic; a busy port must be an error instead.

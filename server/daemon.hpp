@@ -9,6 +9,8 @@
 #include <string>
 #include <vector>
 
+#include "server/policy/quotas.hpp"
+
 namespace softshock::server {
 
 struct DaemonConfig {
@@ -17,7 +19,12 @@ struct DaemonConfig {
   std::string port_file;  // empty = none
   int workers = 0;        // 0 = hardware threads
   std::size_t max_queued = 1000;
-  std::string token_file;         // empty = no authentication
+  // Who may call (server/policy/users.hpp): the token file's token is one user, `token_user`,
+  // an admin; the users file has one `user:token[:role]` line per user. Both empty = no
+  // authentication (every call is the default user, an admin).
+  std::string token_file;
+  std::string token_user = "default";
+  std::string users_file;
   bool insecure_no_auth = false;  // allow no token on a non-loopback listen address
   std::string tls_cert, tls_key;  // both or neither
   int max_elements = 2'000'000;
@@ -30,6 +37,11 @@ struct DaemonConfig {
   int solver_threads = 1;
   long long mesh_cache_bytes = 1LL << 30;  // DATA/cache/meshes, LRU by bytes; 0 = no cache
   int max_attempts = 3;
+  // Free space the data folder keeps (jobs start, frames are written, uploads and submissions
+  // are taken only above it).
+  double min_free_bytes = 256.0 * (1 << 20);
+  // Per-user and global bounds on queued jobs and stored meshes (server/policy/quotas.hpp).
+  QuotaLimits quotas;
   int max_streams = 64;
   // Calls served at once (gRPC resource quota: one thread each in the synchronous server);
   // a call beyond gets RESOURCE_EXHAUSTED instead of another thread.
@@ -64,6 +76,9 @@ class Daemon {
   // job did not stop within job_stop_s (it was recorded as QUEUED anyway; the caller should
   // exit the process promptly, without running destructors that wait for it).
   bool stop();
+  // Reads the token and users files again (SIGHUP) and swaps the users in for calls that start
+  // afterwards. Throws std::exception with a message fit for the log (the old users stay).
+  void reload_users();
 
  private:
   struct Impl;

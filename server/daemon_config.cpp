@@ -10,6 +10,8 @@
 #include <fstream>
 #include <sstream>
 
+#include "server/policy/users.hpp"
+
 namespace softshock::server {
 
 namespace {
@@ -139,9 +141,25 @@ const std::vector<Setting>& settings() {
          c.max_queued = static_cast<std::size_t>(parse_int(v, 1, 100'000'000));
        },
        [](const DaemonConfig& c) { return std::to_string(c.max_queued); }},
-      {"token-file", "FILE", "require 'authorization: Bearer <token>' with the token in FILE",
+      {"token-file", "FILE",
+       "require 'authorization: Bearer <token>'; the token in FILE is the user token-user, an "
+       "admin",
        [](DaemonConfig& c, const std::string& v) { c.token_file = v; },
        [](const DaemonConfig& c) { return show_path(c.token_file); }},
+      {"token-user", "NAME", "the user token-file's token names (default 'default')",
+       [](DaemonConfig& c, const std::string& v) {
+         if (!valid_user_name(v)) {
+           throw std::invalid_argument(
+               "expects a user name: 1 to 64 of A-Z a-z 0-9 . _ -, not starting with . or -");
+         }
+         c.token_user = v;
+       },
+       [](const DaemonConfig& c) { return c.token_user; }},
+      {"users-file", "FILE",
+       "users who may call, one 'user:token[:role]' line each (role user or admin); same file "
+       "rules as token-file; reread on SIGHUP",
+       [](DaemonConfig& c, const std::string& v) { c.users_file = v; },
+       [](const DaemonConfig& c) { return show_path(c.users_file); }},
       {"insecure-no-auth", nullptr,
        "serve a non-loopback address without token-file (only behind another auth layer)",
        [](DaemonConfig& c, const std::string& v) { c.insecure_no_auth = parse_bool(v); },
@@ -192,6 +210,42 @@ const std::vector<Setting>& settings() {
          c.mesh_cache_bytes = parse_int(v, 0, 1LL << 50);
        },
        [](const DaemonConfig& c) { return std::to_string(c.mesh_cache_bytes); }},
+      {"min-free-bytes", "BYTES",
+       "free space the data folder keeps: below it no job starts and no submission or upload "
+       "is taken (default 256M)",
+       [](DaemonConfig& c, const std::string& v) { c.min_free_bytes = parse_bytes(v); },
+       [](const DaemonConfig& c) { return show_bytes(c.min_free_bytes); }},
+      {"max-queued-per-user", "N",
+       "waiting jobs (grid points included) one user may have (default 500)",
+       [](DaemonConfig& c, const std::string& v) {
+         c.quotas.max_queued_per_user = parse_int(v, 1, 100'000'000);
+       },
+       [](const DaemonConfig& c) { return std::to_string(c.quotas.max_queued_per_user); }},
+      {"max-meshes", "N", "uploaded meshes stored, all users together (default 1000)",
+       [](DaemonConfig& c, const std::string& v) {
+         c.quotas.max_meshes = parse_int(v, 1, 100'000'000);
+       },
+       [](const DaemonConfig& c) { return std::to_string(c.quotas.max_meshes); }},
+      {"max-meshes-per-user", "N", "uploaded meshes one user may store (default 100)",
+       [](DaemonConfig& c, const std::string& v) {
+         c.quotas.max_meshes_per_user = parse_int(v, 1, 100'000'000);
+       },
+       [](const DaemonConfig& c) { return std::to_string(c.quotas.max_meshes_per_user); }},
+      {"max-mesh-bytes", "BYTES", "bytes of uploaded meshes, all users together (default 8G)",
+       [](DaemonConfig& c, const std::string& v) {
+         c.quotas.max_mesh_bytes = static_cast<std::int64_t>(parse_bytes(v));
+       },
+       [](const DaemonConfig& c) {
+         return show_bytes(static_cast<double>(c.quotas.max_mesh_bytes));
+       }},
+      {"max-mesh-bytes-per-user", "BYTES",
+       "bytes of uploaded meshes one user may store (default 1G)",
+       [](DaemonConfig& c, const std::string& v) {
+         c.quotas.max_mesh_bytes_per_user = static_cast<std::int64_t>(parse_bytes(v));
+       },
+       [](const DaemonConfig& c) {
+         return show_bytes(static_cast<double>(c.quotas.max_mesh_bytes_per_user));
+       }},
       {"max-attempts", "N", "runs a job gets when the daemon is killed under it (default 3)",
        [](DaemonConfig& c, const std::string& v) {
          c.max_attempts = static_cast<int>(parse_int(v, 1, 1000));
@@ -446,8 +500,8 @@ std::string daemon_config_usage() {
   }
   s << "  --help     this text\n"
        "  --version  print the version\n\n"
-       "A listen address other than loopback (0.0.0.0, [::], a host name) needs token-file or\n"
-       "insecure-no-auth: softshockd refuses to start open to the network.\n\n"
+       "A listen address other than loopback (0.0.0.0, [::], a host name) needs token-file,\n"
+       "users-file or insecure-no-auth: softshockd refuses to start open to the network.\n\n"
        "Precedence: flag > environment variable > config file > default. A flag may be given\n"
        "as --key VALUE or --key=VALUE; repeated, the last one wins. An empty variable counts as\n"
        "unset; other SOFTSHOCK_* variables are ignored. Switches take true/false (also 1/0,\n"
@@ -499,7 +553,7 @@ bool is_loopback_listen_address(const std::string& listen) {
 }
 
 std::optional<std::string> transport_warning(const DaemonConfig& config) {
-  if (config.token_file.empty() || !config.tls_cert.empty() ||
+  if ((config.token_file.empty() && config.users_file.empty()) || !config.tls_cert.empty() ||
       is_loopback_listen_address(config.listen)) {
     return std::nullopt;
   }
@@ -510,14 +564,15 @@ std::optional<std::string> transport_warning(const DaemonConfig& config) {
 }
 
 std::optional<std::string> exposure_problem(const DaemonConfig& config) {
-  if (!config.token_file.empty() || config.insecure_no_auth ||
+  if (!config.token_file.empty() || !config.users_file.empty() || config.insecure_no_auth ||
       is_loopback_listen_address(config.listen)) {
     return std::nullopt;
   }
   return "refusing to listen on " + config.listen +
          " without authentication: it is not a loopback address, so anyone who reaches it "
          "could submit, cancel and delete jobs. Set token-file (--token-file, "
-         "SOFTSHOCK_TOKEN_FILE), or insecure-no-auth if another layer authenticates";
+         "SOFTSHOCK_TOKEN_FILE) or users-file (--users-file, SOFTSHOCK_USERS_FILE), or "
+         "insecure-no-auth if another layer authenticates";
 }
 
 }  // namespace softshock::server

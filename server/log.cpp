@@ -2,6 +2,7 @@
 
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <ctime>
 #include <mutex>
@@ -35,6 +36,40 @@ void log_line(LogLevel level, std::string_view message) {
     p += w;
     left -= static_cast<std::size_t>(w);
   }
+}
+
+bool LogRateLimit::allow(std::int64_t* dropped) {
+  std::lock_guard lock(mutex_);
+  const auto now = std::chrono::steady_clock::now();
+  tokens_ = std::min(burst_, tokens_ + std::chrono::duration<double>(now - last_).count() * rate_);
+  last_ = now;
+  if (tokens_ < 1) {
+    ++dropped_;
+    return false;
+  }
+  tokens_ -= 1;
+  *dropped = dropped_;
+  dropped_ = 0;
+  return true;
+}
+
+void log_limited(LogRateLimit& limit, LogLevel level, std::string_view message) {
+  std::int64_t dropped = 0;
+  if (!limit.allow(&dropped)) return;
+  if (dropped == 0) {
+    log_line(level, message);
+  } else {
+    log_line(level, std::string(message) + " (" + std::to_string(dropped) +
+                        " similar line(s) dropped before this one)");
+  }
+}
+
+std::string log_field(std::string_view text, std::size_t max_bytes) {
+  if (text.empty()) return "-";
+  std::string out;
+  for (char c : text.substr(0, max_bytes)) out += (c > 0x20 && c < 0x7f) ? c : '?';
+  if (text.size() > max_bytes) out += "...";
+  return out;
 }
 
 }  // namespace softshock::server

@@ -34,7 +34,7 @@ int main(int argc, char** argv) {
   }
   const DaemonConfig& config = loaded.config;
   log_info(describe_daemon_config(loaded));
-  if (config.insecure_no_auth && config.token_file.empty() &&
+  if (config.insecure_no_auth && config.token_file.empty() && config.users_file.empty() &&
       !is_loopback_listen_address(config.listen)) {
     log_warning("insecure-no-auth: serving ", config.listen,
                 " without authentication; anyone who reaches it can submit and delete jobs");
@@ -46,6 +46,7 @@ int main(int argc, char** argv) {
   sigemptyset(&stop_signals);
   sigaddset(&stop_signals, SIGTERM);
   sigaddset(&stop_signals, SIGINT);
+  sigaddset(&stop_signals, SIGHUP);  // reread the token and users files
   pthread_sigmask(SIG_BLOCK, &stop_signals, nullptr);
   signal(SIGPIPE, SIG_IGN);
 
@@ -59,7 +60,13 @@ int main(int argc, char** argv) {
   }
 
   int received = 0;
-  sigwait(&stop_signals, &received);
+  while (sigwait(&stop_signals, &received) == 0 && received == SIGHUP) {
+    try {
+      daemon->reload_users();
+    } catch (const std::exception& e) {
+      log_error("SIGHUP: users not reloaded: ", e.what());
+    }
+  }
   log_info("received ", strsignal(received));
   bool clean = false;
   try {

@@ -16,6 +16,7 @@
 
 #include "server/jobs/mesh_process.hpp"
 #include "server/log.hpp"
+#include "server/store/resource_exhausted.hpp"
 #include "solver/io/async_result_writer.hpp"
 #include "solver/io/result_file.hpp"
 #include "solver/run_summary.hpp"
@@ -257,6 +258,14 @@ double JobRunner::free_bytes() const {
   struct statvfs st {};
   if (::statvfs(config_.data_dir.c_str(), &st) != 0) return INFINITY;  // unknown: do not block
   return static_cast<double>(st.f_bavail) * static_cast<double>(st.f_frsize);
+}
+
+void JobRunner::require_free_space() const {
+  if (const double free = free_bytes(); free < config_.min_free_bytes) {
+    throw ResourceExhausted("the daemon's disk has " + megabytes(free) +
+                            " free, below its reserve of " + megabytes(config_.min_free_bytes) +
+                            " (min-free-bytes): delete jobs or meshes to make room");
+  }
 }
 
 std::string JobRunner::job_dir(const std::string& id) const {

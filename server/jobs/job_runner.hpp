@@ -61,6 +61,9 @@ class JobRunner {
   // QUEUED -> SUCCEEDED reusing an identical SUCCEEDED job's result, if there is one (true =
   // the job needs no run).
   bool reuse_identical(const JobRecord& job) const;
+  // Throws ResourceExhausted while the data folder's free space is below min_free_bytes: no new
+  // work is taken then (it could not run, and the catalogue keeps its room).
+  void require_free_space() const;
 
  private:
   void run_job(const std::string& id, CancelToken& cancel);

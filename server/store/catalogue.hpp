@@ -16,13 +16,15 @@
 #include <string>
 #include <vector>
 
+#include "server/store/resource_exhausted.hpp"
 #include "solver/run_summary.hpp"
 
 namespace softshock::server {
 
 namespace detail {
 class SqliteConnection;
-}
+class CatalogueRoom;
+}  // namespace detail
 
 // Numbers match softshock.v1.JobState so the service maps them one to one.
 enum class JobState { kQueued = 1, kRunning = 2, kSucceeded = 3, kFailed = 4, kCancelled = 5 };
@@ -52,6 +54,16 @@ class CatalogueError : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
+// A write failed because the disk is full (SQLITE_FULL): RESOURCE_EXHAUSTED for a client, not
+// the catalogue's fault.
+class CatalogueFull : public ResourceExhausted {
+ public:
+  using ResourceExhausted::ResourceExhausted;
+};
+
+// The space the catalogue keeps on its disk for deletions and outcomes (catalogue_room.hpp).
+inline constexpr std::int64_t kCatalogueRoomBytes = std::int64_t{8} << 20;
+
 struct JobProgressRecord {
   double fraction = 0, simulated_time_s = 0, dt_s = 0;
   int64_t steps = 0;
@@ -75,6 +87,7 @@ struct JobRecord {
   int grid_index = 0;
   std::string reused_from;  // the SUCCEEDED job whose result this one reuses; empty = ran itself
   bool reuse_result = false;
+  std::string owner;  // the user who submitted it (server/policy/users.hpp)
 };
 
 // The nondimensional groups of a job as catalogued (indexed columns; NaN = not known yet, e.g.
@@ -94,6 +107,7 @@ struct NewJob {
   // must then name the linked result file.
   std::string reused_from;
   std::string result_path;
+  std::string owner;  // the submitting user
 };
 
 // The catalogued figures of a finished run: the solver's summary plus the mode amplitudes
@@ -117,10 +131,11 @@ struct GridRecord {
   int point_count = 0;
   bool cancelled = false;
   std::string definition;
+  std::string owner;
 };
 
 struct NewGrid {
-  std::string id, request_id, definition;
+  std::string id, request_id, definition, owner;
   int64_t create_us = 0;
 };
 
@@ -153,6 +168,7 @@ struct JobQuery {
   std::vector<RangeCondition> conditions;
   std::optional<JobState> state;
   std::string grid_id;     // empty = any
+  std::string owner;       // empty = any
   std::string order_by;    // a query column; empty = newest first
   bool descending = true;  // for order_by
   // Keyset cursor: rows after (after_key, after_seq) in the sort order; after_seq 0 = first page.
@@ -184,6 +200,7 @@ struct ListFilter {
   int64_t created_after_us = 0;            // exclusive; 0 = no bound
   int64_t created_before_us = 0;           // exclusive; 0 = no bound
   int64_t before_seq = 0;                  // page cursor: only seq < this; 0 = from the newest
+  std::string owner;                       // empty = any
   int limit = 50;
 };
 
@@ -206,8 +223,10 @@ struct RecoveryReport {
 
 class Catalogue {
  public:
-  // Opens (creating if needed) the database and applies pending migrations in order.
-  explicit Catalogue(const std::string& path);
+  // Opens (creating if needed) the database and applies pending migrations in order, and takes
+  // `room_bytes` of the disk beside it (path with the extension .room) for the writes that must
+  // work on a full disk (catalogue_room.hpp; 0 = none).
+  explicit Catalogue(const std::string& path, int64_t room_bytes = kCatalogueRoomBytes);
   ~Catalogue();
   Catalogue(const Catalogue&) = delete;
   Catalogue& operator=(const Catalogue&) = delete;
@@ -215,12 +234,17 @@ class Catalogue {
   int schema_version() const;
 
   // Inserts a QUEUED job, durably. With a request_id already known, returns that job instead
-  // (created = false) — the AIP-155 idempotent create.
+  // (created = false) — the AIP-155 idempotent create. With max_owner_queued > 0, refuses
+  // (refused = true, created = false, owner_queued = the owner's QUEUED jobs) a job whose owner
+  // has that many QUEUED jobs already; counted in the insert's own transaction, so concurrent
+  // submissions cannot pass the bound together. A full disk throws CatalogueFull.
   struct InsertResult {
     JobRecord job;
     bool created = false;
+    bool refused = false;
+    int64_t owner_queued = 0;
   };
-  InsertResult insert(const NewJob& job);
+  InsertResult insert(const NewJob& job, int64_t max_owner_queued = 0);
 
   std::optional<JobRecord> get(const std::string& id) const;
   std::optional<JobRecord> find_by_request_id(const std::string& request_id) const;
@@ -232,6 +256,11 @@ class Catalogue {
   std::optional<StoredSummary> summary(const std::string& id) const;
   // Counts per state (for the start-up log).
   std::map<JobState, int64_t> counts() const;
+  // QUEUED jobs of one owner.
+  int64_t queued_of(const std::string& owner) const;
+  // (job id, geometry.mesh_file) of every QUEUED or RUNNING job whose spec names a mesh file, in
+  // submission order: what DeleteMesh must not pull from under a job.
+  std::vector<std::pair<std::string, std::string>> unfinished_mesh_files() const;
   // The first SUCCEEDED job with this spec hash that ran itself, has a result file and a summary
   // from solver revision `solver_revision` (the running one), other than `except_id`: what an
   // identical run may reuse. A result of other numerics is never passed off as this solver's.
@@ -245,16 +274,21 @@ class Catalogue {
   // Inserts the grid and all its points in one durable transaction (points with reused_from
   // go in SUCCEEDED, the rest QUEUED). With a request_id already known, returns that grid
   // instead (created = false) and inserts nothing.
+  // max_owner_queued as for insert(), for the points that go in QUEUED (all or none).
   struct GridInsertResult {
     GridRecord grid;
     bool created = false;
     std::vector<int64_t> point_seqs;  // the points' seq (FIFO key), in the order given
+    bool refused = false;
+    int64_t owner_queued = 0;
   };
-  GridInsertResult insert_grid(const NewGrid& grid, const std::vector<NewJob>& points);
+  GridInsertResult insert_grid(const NewGrid& grid, const std::vector<NewJob>& points,
+                               int64_t max_owner_queued = 0);
   std::optional<GridRecord> get_grid(const std::string& id) const;
   std::optional<GridRecord> find_grid_by_request_id(const std::string& request_id) const;
-  // Newest first; before_seq 0 = from the newest.
-  std::vector<GridRecord> list_grids(int64_t before_seq, int limit) const;
+  // Newest first; before_seq 0 = from the newest; owner empty = any.
+  std::vector<GridRecord> list_grids(int64_t before_seq, int limit,
+                                     const std::string& owner = "") const;
   GridCounts grid_counts(const std::string& grid_id) const;
   // Every point in index order, with summaries (A-bar samples included, modes left out).
   std::vector<GridPoint> grid_points(const std::string& grid_id) const;
@@ -294,7 +328,17 @@ class Catalogue {
   // (INTERRUPTED in the attempt history), or fail it with MAX_ATTEMPTS beyond max_attempts.
   RecoveryReport recover(int max_attempts, int64_t now_us);
 
+  // --- the room kept for a full disk (catalogue_room.hpp)
+  // Takes the room back if it was used (after something was deleted); false while the disk
+  // lacks the space.
+  bool refill_room();
+  bool room_held() const;
+  // refill_room() unless the room is held (a stat when it is): after deletions, and before a
+  // submission is taken.
+  void keep_room();
+
  private:
+  std::unique_ptr<detail::CatalogueRoom> room_;
   std::unique_ptr<detail::SqliteConnection> writer_;
   std::unique_ptr<detail::SqliteConnection> reader_;
   mutable std::mutex writer_mutex_;

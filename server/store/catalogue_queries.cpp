@@ -118,6 +118,7 @@ std::vector<QueryRow> Catalogue::query(const JobQuery& q) const {
   }
   if (q.state) page += " AND j.state = ?";
   if (!q.grid_id.empty()) page += " AND j.grid_id = ?";
+  if (!q.owner.empty()) page += " AND j.owner = ?";
   if (q.after_seq > 0) {
     page += ordered ? std::string(" AND (") + key + (desc ? " < ?" : " > ?") + " OR (" + key +
                           " = ? AND j.seq" + (desc ? " < ?" : " > ?") + "))"
@@ -146,6 +147,7 @@ std::vector<QueryRow> Catalogue::query(const JobQuery& q) const {
     }
     if (q.state) s.bind(i++, static_cast<int>(*q.state));
     if (!q.grid_id.empty()) s.bind(i++, q.grid_id);
+    if (!q.owner.empty()) s.bind(i++, q.owner);
     if (q.after_seq > 0) {
       if (ordered) {
         s.bind(i++, q.after_key);

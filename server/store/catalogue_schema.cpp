@@ -3,9 +3,15 @@
 
 #include <cstdint>
 #include <iterator>
+#include <string_view>
+
+#include "server/policy/users.hpp"
 
 namespace softshock::server::detail {
 namespace {
+
+// Migration 8 writes the default owner as a literal.
+static_assert(std::string_view(kDefaultUser) == "default");
 
 // Ordered migrations: entry k brings the schema from version k to k + 1. Never edit a shipped
 // entry; append a new one.
@@ -182,9 +188,27 @@ ALTER TABLE job_summaries ADD COLUMN solver_revision INTEGER NOT NULL DEFAULT 0;
 ALTER TABLE job_summaries ADD COLUMN diagnostics_time REAL NOT NULL DEFAULT 0;
 ALTER TABLE job_summaries ADD COLUMN output_time REAL NOT NULL DEFAULT 0;
 )sql",
+    // 7 -> 8: owners (server/policy/): the user who submitted a job or grid. Rows of a data
+    // folder from before users existed belong to the default user, which is also the single
+    // --token-file user's name unless --token-user says otherwise. The index serves the per-user
+    // queue bound (owner's QUEUED jobs, counted at every submission) and the owner filters.
+    R"sql(
+ALTER TABLE jobs ADD COLUMN owner TEXT NOT NULL DEFAULT 'default';
+ALTER TABLE grids ADD COLUMN owner TEXT NOT NULL DEFAULT 'default';
+CREATE INDEX jobs_owner_state ON jobs(owner, state);
+)sql",
 };
 
 }  // namespace
+
+int catalogue_schema_version() {
+  return static_cast<int>(std::size(kMigrations));
+}
+
+const char* catalogue_migration(int from) {
+  if (from < 0 || from >= catalogue_schema_version()) return nullptr;
+  return kMigrations[from];
+}
 
 int migrate_catalogue(SqliteConnection& c, const std::string& path) {
   c.exec("CREATE TABLE IF NOT EXISTS schema_version (version INTEGER NOT NULL)");

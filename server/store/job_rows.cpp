@@ -3,6 +3,7 @@
 #include <cmath>
 #include <cstring>
 
+#include "server/policy/users.hpp"
 #include "server/store/summary_rows.hpp"
 
 namespace softshock::server::detail {
@@ -30,7 +31,8 @@ std::string job_columns(const std::string& t) {
                         "grid_id",
                         "grid_index",
                         "reused_from",
-                        "reuse_result"}) {
+                        "reuse_result",
+                        "owner"}) {
     const std::string name = t + c;
     const bool nullable = std::strcmp(c, "request_id") == 0 || std::strcmp(c, "grid_id") == 0;
     out += (out.empty() ? "" : ", ") + (nullable ? "COALESCE(" + name + ", '')" : name);
@@ -62,6 +64,7 @@ JobRecord read_job(const Connection::Stmt& s) {
   j.grid_index = static_cast<int>(s.i64(19));
   j.reused_from = s.text(20);
   j.reuse_result = s.i64(21) != 0;
+  j.owner = s.text(22);
   return j;
 }
 
@@ -113,8 +116,8 @@ int64_t insert_job_row(Connection& c, const NewJob& job) {
     auto s = c.prepare(
         "INSERT INTO jobs(id, state, spec_json, spec_hash, priority, request_id, create_time_us, "
         "attempt, grid_id, grid_index, reuse_result, reused_from, result_path, start_time_us, "
-        "finish_time_us, progress_fraction, pbar, tbar_pulse, mubar, gamma, c1, c2) "
-        "VALUES (?, ?, ?, ?, ?, ?, ?, 1, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)");
+        "finish_time_us, progress_fraction, pbar, tbar_pulse, mubar, gamma, c1, c2, owner) "
+        "VALUES (?, ?, ?, ?, ?, ?, ?, 1, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)");
     s.bind(1, job.id);
     s.bind(2, static_cast<int>(reused ? JobState::kSucceeded : JobState::kQueued));
     s.bind(3, job.spec_json).bind(4, job.spec_hash).bind(5, job.priority);
@@ -136,6 +139,7 @@ int64_t insert_job_row(Connection& c, const NewJob& job) {
     const NondimensionalGroups& g = job.groups;
     int i = 16;
     for (double v : {g.pbar, g.tbar_pulse, g.mubar, g.gamma, g.c1, g.c2}) bind_nullable(s, i++, v);
+    s.bind(i, job.owner.empty() ? std::string(kDefaultUser) : job.owner);
     s.run();
   }
   const int64_t seq = c.last_insert_rowid();
@@ -149,6 +153,12 @@ int64_t insert_job_row(Connection& c, const NewJob& job) {
     refresh_query_columns(c, job.id);
   }
   return seq;
+}
+
+int64_t count_queued(Connection& c, const std::string& owner) {
+  auto s = c.prepare("SELECT COUNT(*) FROM jobs WHERE owner = ? AND state = ?");
+  s.bind(1, owner).bind(2, static_cast<int>(JobState::kQueued));
+  return s.step() ? s.i64(0) : 0;
 }
 
 void close_attempt(Connection& c, const std::string& id, int attempt, const std::string& outcome,

@@ -15,7 +15,7 @@ using Connection = SqliteConnection;
 // The job columns read_job() expects, qualified with `t` (a table alias and dot, or empty) so
 // queries that join job_summaries (which has its own `error`) stay unambiguous.
 std::string job_columns(const std::string& t = "");
-inline constexpr int kJobColumnCount = 22;
+inline constexpr int kJobColumnCount = 23;
 JobRecord read_job(const Connection::Stmt& s);
 
 // A nullable REAL column: NaN for NULL, and NULL for NaN.
@@ -30,6 +30,9 @@ std::optional<JobRecord> get_by_request_id(Connection& c, const std::string& req
 // One job row and its labels; a job that reuses another's result goes in SUCCEEDED, finished,
 // with the source's summary. Returns its seq.
 int64_t insert_job_row(Connection& c, const NewJob& job);
+
+// QUEUED jobs of `owner`.
+int64_t count_queued(Connection& c, const std::string& owner);
 
 // Ends the open job_attempts row of (id, attempt).
 void close_attempt(Connection& c, const std::string& id, int attempt, const std::string& outcome,

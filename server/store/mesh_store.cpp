@@ -18,8 +18,10 @@
 #include <stdexcept>
 
 #include "server/jobs/job_runner.hpp"
+#include "server/store/catalogue.hpp"
 #include "server/store/resource_exhausted.hpp"
 #include "solver/io/durable_file.hpp"
+#include "solver/mesh_file_path.hpp"
 
 namespace softshock::server {
 
@@ -51,6 +53,7 @@ std::optional<v1::Mesh> read_record(const fs::path& json_path) {
   text << in.rdbuf();
   v1::Mesh mesh;
   if (!google::protobuf::util::JsonStringToMessage(text.str(), &mesh).ok()) return std::nullopt;
+  if (mesh.owner().empty()) mesh.set_owner(kDefaultUser);  // stored before owners existed
   return mesh;
 }
 
@@ -99,6 +102,39 @@ MeshStore::MeshStore(std::string meshes_dir, MeshStoreLimits limits, MeshValidat
       validate_(std::move(validate)) {
   fs::create_directories(uploads_dir_);
   sweep();
+  load_index();
+}
+
+void MeshStore::load_index() {
+  std::lock_guard<std::mutex> lock(write_mutex_);
+  index_.clear();
+  for (const auto& entry : fs::directory_iterator(uploads_dir_)) {
+    const std::string name = entry.path().filename().string();
+    if (entry.path().extension() != ".json") continue;
+    const std::string id = name.substr(0, name.size() - 5);
+    if (!is_mesh_id(id)) continue;
+    if (auto m = get(id)) index_[id] = {m->owner(), m->size_bytes()};
+  }
+}
+
+MeshUsage MeshStore::usage_locked(const std::string& owner) const {
+  MeshUsage u;
+  for (const auto& [id, m] : index_) {
+    if (owner.empty() || m.owner == owner) {
+      ++u.count;
+      u.bytes += m.bytes;
+    }
+  }
+  return u;
+}
+
+MeshUsage MeshStore::usage(const std::string& owner) const {
+  std::lock_guard<std::mutex> lock(write_mutex_);
+  return usage_locked(owner);
+}
+
+MeshUsage MeshStore::total_usage() const {
+  return usage("");
 }
 
 void MeshStore::sweep() {
@@ -188,7 +224,8 @@ std::unique_ptr<MeshStore::Upload> MeshStore::begin_upload() {
   return std::unique_ptr<Upload>(new Upload(*this, path, fd));
 }
 
-v1::Mesh MeshStore::commit(Upload& upload, const std::string& file_name, std::int64_t now_us) {
+v1::Mesh MeshStore::commit(Upload& upload, const std::string& file_name, const std::string& owner,
+                           std::int64_t now_us) {
   check_mesh_file_name(file_name);
   if (upload.size_ == 0) throw SpecError("data", "the mesh file is empty");
   const std::string id = upload.hash_.hex_digest();
@@ -218,23 +255,28 @@ v1::Mesh MeshStore::commit(Upload& upload, const std::string& file_name, std::in
   record.set_elements(counts.elements);
   record.set_file_name(file_name);
   *record.mutable_create_time() = google::protobuf::util::TimeUtil::MicrosecondsToTimestamp(now_us);
+  record.set_owner(owner);
   std::string json;
   (void)google::protobuf::util::MessageToJsonString(record, &json);
 
   std::lock_guard<std::mutex> lock(write_mutex_);
   if (auto existing = get(id)) return *existing;  // a concurrent upload of the same bytes won
+  // Under the writers' lock: two uploads cannot pass a bound together.
+  check_mesh_quota(limits_.quotas, owner, usage_locked(owner), usage_locked(""), upload.size_);
   // The file first, then its record: a record always has its file.
   rename_file(upload.path_, fs::path(uploads_dir_) / (id + ".msh"));
   upload.committed_ = true;
   write_durably(fs::path(uploads_dir_) / (id + ".json"), json);
   fsync_path(uploads_dir_, true);
+  index_[id] = {owner, upload.size_};
   return record;
 }
 
-v1::Mesh MeshStore::add(std::string_view bytes, const std::string& file_name, std::int64_t now_us) {
+v1::Mesh MeshStore::add(std::string_view bytes, const std::string& file_name, std::int64_t now_us,
+                        const std::string& owner) {
   auto upload = begin_upload();
   upload->append(bytes);
-  return commit(*upload, file_name, now_us);
+  return commit(*upload, file_name, owner, now_us);
 }
 
 std::optional<v1::Mesh> MeshStore::get(const std::string& id) const {
@@ -244,15 +286,16 @@ std::optional<v1::Mesh> MeshStore::get(const std::string& id) const {
   return read_record(fs::path(uploads_dir_) / (id + ".json"));
 }
 
-std::vector<v1::Mesh> MeshStore::list(const std::string& after, int limit) const {
+std::vector<v1::Mesh> MeshStore::list(const std::string& after, int limit,
+                                      const std::string& owner) const {
   std::vector<std::string> ids;
-  for (const auto& entry : fs::directory_iterator(uploads_dir_)) {
-    const std::string name = entry.path().filename().string();
-    if (entry.path().extension() != ".json") continue;
-    const std::string id = name.substr(0, name.size() - 5);
-    if (is_mesh_id(id) && id > after) ids.push_back(id);
+  {
+    std::lock_guard<std::mutex> lock(write_mutex_);
+    for (auto it = index_.upper_bound(after);
+         it != index_.end() && static_cast<int>(ids.size()) < limit; ++it) {
+      if (owner.empty() || it->second.owner == owner) ids.push_back(it->first);
+    }
   }
-  std::sort(ids.begin(), ids.end());
   std::vector<v1::Mesh> out;
   for (const auto& id : ids) {
     if (static_cast<int>(out.size()) >= limit) break;
@@ -268,8 +311,27 @@ bool MeshStore::remove(const std::string& id) {
   // The record first: a file without a record is invisible and is replaced by a re-upload.
   const bool had = fs::remove(fs::path(uploads_dir_) / (id + ".json"), ec);
   fs::remove(fs::path(uploads_dir_) / (id + ".msh"), ec);
+  index_.erase(id);
   fsync_path(uploads_dir_, true);
   return had;
+}
+
+std::optional<std::string> job_using_mesh(const Catalogue& catalogue, const MeshStore& meshes,
+                                          const std::string& id) {
+  std::string upload;
+  try {
+    upload = resolve_mesh_file(meshes.meshes_dir(), uploaded_mesh_file(id));
+  } catch (const SpecError&) {
+    return std::nullopt;  // no such file: nothing can be using it
+  }
+  for (const auto& [job, mesh_file] : catalogue.unfinished_mesh_files()) {
+    try {
+      if (resolve_mesh_file(meshes.meshes_dir(), mesh_file) == upload) return job;
+    } catch (const SpecError&) {
+      // The job's mesh file is gone or never was: it is not this mesh (the job fails at start).
+    }
+  }
+  return std::nullopt;
 }
 
 // ---- specs -------------------------------------------------------------------------------------

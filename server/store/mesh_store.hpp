@@ -12,6 +12,7 @@
 #include <atomic>
 #include <cstdint>
 #include <functional>
+#include <map>
 #include <memory>
 #include <mutex>
 #include <optional>
@@ -21,6 +22,8 @@
 #include <vector>
 
 #include "server/jobs/grid.hpp"
+#include "server/policy/quotas.hpp"
+#include "server/policy/users.hpp"
 #include "server/store/spec_hash.hpp"
 #include "softshock/v1/service.pb.h"
 #include "solver/run_spec.hpp"
@@ -55,7 +58,11 @@ struct MeshStoreLimits {
   double min_free_bytes = 256.0 * (1 << 20);
   // Free bytes of the folder; unset = statvfs.
   std::function<double(const std::string& dir)> free_bytes;
+  // Stored meshes by count and bytes, per user and in all (the max_meshes* fields).
+  QuotaLimits quotas;
 };
+
+class Catalogue;
 
 class MeshStore {
  public:
@@ -89,18 +96,27 @@ class MeshStore {
   // Throws ResourceExhausted when max_concurrent_uploads are in progress or the disk is within
   // its reserve.
   std::unique_ptr<Upload> begin_upload();
-  // Validates the staged bytes and stores them unless a mesh with the same id exists (then
-  // returns that one). `file_name` must pass check_mesh_file_name. Throws SpecError("data", rule)
-  // for bytes that are not a usable mesh.
-  v1::Mesh commit(Upload& upload, const std::string& file_name, std::int64_t now_us);
+  // Validates the staged bytes and stores them, owned by `owner`, unless a mesh with the same id
+  // exists (then returns that one, whoever owns it: the same bytes are one mesh, counted against
+  // its first uploader). `file_name` must pass check_mesh_file_name. Throws SpecError("data",
+  // rule) for bytes that are not a usable mesh, ResourceExhausted when a new mesh would pass a
+  // quota (limits.quotas; checked with the id known, so re-sending a stored mesh always works).
+  v1::Mesh commit(Upload& upload, const std::string& file_name, const std::string& owner,
+                  std::int64_t now_us);
   // begin_upload + append + commit, for bytes already at hand.
-  v1::Mesh add(std::string_view bytes, const std::string& file_name, std::int64_t now_us);
+  v1::Mesh add(std::string_view bytes, const std::string& file_name, std::int64_t now_us,
+               const std::string& owner = kDefaultUser);
 
+  // A record without an owner (stored before owners existed) reads as the default user's.
   std::optional<v1::Mesh> get(const std::string& id) const;
-  // Ids in increasing order after `after` (exclusive), at most `limit`.
-  std::vector<v1::Mesh> list(const std::string& after, int limit) const;
+  // Ids in increasing order after `after` (exclusive), at most `limit`; owner empty = any.
+  std::vector<v1::Mesh> list(const std::string& after, int limit,
+                             const std::string& owner = "") const;
   // Removes the mesh; false when there was none.
   bool remove(const std::string& id);
+  // What `owner` stores (count, bytes), and what everyone does.
+  MeshUsage usage(const std::string& owner) const;
+  MeshUsage total_usage() const;
 
   // Submissions hold this shared while they resolve and insert a job; DeleteMesh holds it
   // exclusively while it checks for users and removes, so no job can start using a mesh that is
@@ -115,14 +131,28 @@ class MeshStore {
  private:
   double free_bytes() const;
   void sweep();  // staged files, temporary records and checker folders a crash left
+  void load_index();
+  MeshUsage usage_locked(const std::string& owner) const;
 
+  struct Indexed {
+    std::string owner;
+    std::int64_t bytes = 0;
+  };
   std::string meshes_dir_, uploads_dir_;
   MeshStoreLimits limits_;
   MeshValidator validate_;
   std::atomic<int> uploads_in_progress_{0};
   mutable std::shared_mutex use_mutex_;
-  mutable std::mutex write_mutex_;  // one writer of uploads/ at a time
+  mutable std::mutex write_mutex_;        // one writer of uploads/ at a time; guards index_
+  std::map<std::string, Indexed> index_;  // every stored mesh by id: owner and size
 };
+
+// The first QUEUED or RUNNING job whose spec names the uploaded mesh `id`, if any. Specs are
+// compared by what their geometry.mesh_file resolves to under DATA/meshes/ (the path rules of
+// solver/mesh_file_path.hpp: every symlink followed), not by their text, so "uploads/./ID.msh" or
+// a symlink to the upload is found as well as "uploads/ID.msh".
+std::optional<std::string> job_using_mesh(const Catalogue& catalogue, const MeshStore& meshes,
+                                          const std::string& id);
 
 // canonical_spec() as the daemon applies it to a submitted spec: geometry.mesh_id becomes
 // mesh_file "uploads/{id}.msh" (the mesh must exist); limits.mesh_root (DATA/meshes/) makes

@@ -44,11 +44,22 @@ class SqliteConnection {
 
   void exec(const char* sql) {
     char* err = nullptr;
-    if (sqlite3_exec(db_, sql, nullptr, nullptr, &err) != SQLITE_OK) {
+    if (const int rc = sqlite3_exec(db_, sql, nullptr, nullptr, &err); rc != SQLITE_OK) {
       std::string msg = err ? err : "unknown error";
       sqlite3_free(err);
-      throw CatalogueError(std::string("sqlite: ") + msg);
+      throw_error(rc, msg);
     }
+  }
+
+  // SQLITE_FULL (the disk, or the file system's quota) is CatalogueFull: a bound the client can
+  // act on, not a broken store.
+  [[noreturn]] static void throw_error(int rc, const std::string& message) {
+    if ((rc & 0xff) == SQLITE_FULL) {
+      throw CatalogueFull(
+          "the daemon's disk is full: the catalogue cannot grow (" + message +
+          "); delete jobs or meshes to make room, or ask the daemon's operator for space");
+    }
+    throw CatalogueError("sqlite: " + message);
   }
 
   class Stmt {
@@ -88,7 +99,7 @@ class SqliteConnection {
       const int rc = sqlite3_step(s_);
       if (rc == SQLITE_ROW) return true;
       if (rc == SQLITE_DONE) return false;
-      throw CatalogueError(std::string("sqlite: ") + sqlite3_errmsg(c_.db_));
+      throw_error(rc, sqlite3_errmsg(c_.db_));
     }
     void run() {
       while (step()) {

@@ -5,6 +5,7 @@
 #include "server/log.hpp"
 #include "server/transport/resource_name.hpp"
 #include "server/transport/rpc_guard.hpp"
+#include "server/transport/rpc_support.hpp"
 
 namespace softshock::server {
 
@@ -13,7 +14,7 @@ using grpc::StatusCode;
 
 Status MeshService::UploadMesh(grpc::ServerContext* ctx,
                                grpc::ServerReader<v1::UploadMeshRequest>* reader, v1::Mesh* resp) {
-  return guarded(auth_, ctx, "UploadMesh", [&]() -> Status {
+  return audited(auth_, ctx, "UploadMesh", [&](const Caller& caller, AuditRecord& audit) -> Status {
     // Each part goes to the staged file as it arrives: an upload never sits whole in memory, and
     // a bounded number run at once (begin_upload refuses more).
     auto upload = store_.begin_upload();
@@ -30,9 +31,11 @@ Status MeshService::UploadMesh(grpc::ServerContext* ctx,
     }
     if (ctx->IsCancelled()) return {StatusCode::CANCELLED, "upload cancelled by the client"};
     if (first) throw SpecError("data", "the mesh file is empty");
-    *resp = store_.commit(*upload, file_name, now_us());
-    log_info("mesh ", resp->id().substr(0, 12), " uploaded (", resp->elements(), " elements, ",
-             resp->size_bytes(), " bytes)");
+    *resp = store_.commit(*upload, file_name, caller.user, now_us());
+    audit.resource = "meshes/" + resp->id();
+    audit.detail = "bytes=" + std::to_string(resp->size_bytes());
+    log_info("mesh ", resp->id().substr(0, 12), " uploaded by ", caller.user, " (",
+             resp->elements(), " elements, ", resp->size_bytes(), " bytes)");
     return Status::OK;
   });
 }
@@ -43,12 +46,20 @@ Status MeshService::ListMeshes(grpc::ServerContext* ctx, const v1::ListMeshesReq
     if (req->page_size() < 0) {
       return {StatusCode::INVALID_ARGUMENT, "page_size: must not be negative"};
     }
+    if (Status s = rpc::check_owner_filter(req->owner()); !s.ok()) return s;
     const int size = req->page_size() == 0 ? 50 : std::min(req->page_size(), 1000);
     // The token is the last id of the previous page (ids sort as the listing does).
-    auto page = store_.list(req->page_token(), size + 1);
-    const bool more = static_cast<int>(page.size()) > size;
+    auto page = store_.list(req->page_token(), size + 1, req->owner());
+    bool more = static_cast<int>(page.size()) > size;
     if (more) page.pop_back();
-    for (auto& m : page) *resp->add_meshes() = std::move(m);
+    rpc::PageBudget budget;
+    for (auto& m : page) {
+      if (!budget.take(m.ByteSizeLong())) {
+        more = true;
+        break;
+      }
+      *resp->add_meshes() = std::move(m);
+    }
     if (more) resp->set_next_page_token(resp->meshes().rbegin()->id());
     return Status::OK;
   });
@@ -56,41 +67,24 @@ Status MeshService::ListMeshes(grpc::ServerContext* ctx, const v1::ListMeshesReq
 
 Status MeshService::DeleteMesh(grpc::ServerContext* ctx, const v1::DeleteMeshRequest* req,
                                v1::DeleteMeshResponse*) {
-  return guarded(auth_, ctx, "DeleteMesh", [&]() -> Status {
+  return audited(auth_, ctx, "DeleteMesh", [&](const Caller& caller, AuditRecord& audit) -> Status {
     std::string id;
     if (Status st = requested_id(req->name(), req->id(), "meshes/", &id); !st.ok()) return st;
+    audit.resource = "meshes/" + id;
     auto hold = store_.hold_for_delete();  // no submission can start using it meanwhile
-    if (!store_.get(id)) return {StatusCode::NOT_FOUND, "mesh meshes/" + id + " not found"};
-    if (auto job = job_using(id)) {
+    const auto mesh = store_.get(id);
+    if (!mesh) return {StatusCode::NOT_FOUND, "mesh meshes/" + id + " not found"};
+    require_may_modify(caller, "meshes/" + id, mesh->owner(), "delete");
+    if (auto job = job_using_mesh(catalogue_, store_, id)) {
       return {StatusCode::FAILED_PRECONDITION,
               "mesh meshes/" + id + " is used by job jobs/" + *job +
                   ", which is queued or running; delete the mesh once it has finished"};
     }
     store_.remove(id);
+    catalogue_.keep_room();
     log_info("mesh ", id.substr(0, 12), " deleted");
     return Status::OK;
   });
-}
-
-std::optional<std::string> MeshService::job_using(const std::string& id) const {
-  // Stored specs name an uploaded mesh by its file (geometry.mesh_file = "uploads/{id}.msh").
-  std::string needle = uploaded_mesh_file(id);  // appended, not "\"" + ...: GCC 12's
-  needle.insert(needle.begin(), '"');           // -Wrestrict misfires on that concatenation
-  needle.push_back('"');
-  for (JobState state : {JobState::kQueued, JobState::kRunning}) {
-    ListFilter filter;
-    filter.state = state;
-    filter.limit = 1000;
-    for (;;) {
-      const auto jobs = catalogue_.list(filter);
-      for (const auto& job : jobs) {
-        if (job.spec_json.find(needle) != std::string::npos) return job.id;
-      }
-      if (static_cast<int>(jobs.size()) < filter.limit) break;
-      filter.before_seq = jobs.back().seq;
-    }
-  }
-  return std::nullopt;
 }
 
 }  // namespace softshock::server

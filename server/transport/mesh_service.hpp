@@ -1,5 +1,6 @@
-// softshock.v1.MeshService: meshes uploaded by remote clients (server/mesh_store.hpp), with the
-// same bearer-token authentication as SimulationService.
+// softshock.v1.MeshService: meshes uploaded by remote clients (server/store/mesh_store.hpp), with
+// the same authentication as SimulationService; each mesh is owned by its uploader, who (or an
+// admin) alone may delete it, and counts against the uploader's mesh quotas.
 #pragma once
 
 #include "server/store/catalogue.hpp"
@@ -11,7 +12,7 @@ namespace softshock::server {
 
 class MeshService final : public v1::MeshService::Service {
  public:
-  MeshService(MeshStore& store, const Catalogue& catalogue, const Authenticator& auth)
+  MeshService(MeshStore& store, Catalogue& catalogue, const Authenticator& auth)
       : store_(store), catalogue_(catalogue), auth_(auth) {}
 
   grpc::Status UploadMesh(grpc::ServerContext* ctx,
@@ -23,11 +24,8 @@ class MeshService final : public v1::MeshService::Service {
                           v1::DeleteMeshResponse* resp) override;
 
  private:
-  // The first QUEUED or RUNNING job whose spec names the mesh, if any.
-  std::optional<std::string> job_using(const std::string& id) const;
-
   MeshStore& store_;
-  const Catalogue& catalogue_;
+  Catalogue& catalogue_;  // which jobs use a mesh; its room is refilled after a deletion
   const Authenticator& auth_;
 };
 

@@ -20,6 +20,25 @@ namespace rpc {
 
 inline constexpr int kDefaultPageSize = 50;
 inline constexpr int kMaxPageSize = 1000;
+// A page stops growing past this many bytes of items (the first item always goes in): well
+// under gRPC's default 4 MiB receive limit, whatever the items carry.
+inline constexpr std::size_t kMaxPageBytes = 1 << 20;
+
+class PageBudget {
+ public:
+  // True if an item of `bytes` goes in this page (and counts it); false once the page is full.
+  bool take(std::size_t bytes) {
+    if (used_ > 0 && used_ + bytes > kMaxPageBytes) return false;
+    used_ += bytes;
+    return true;
+  }
+
+ private:
+  std::size_t used_ = 0;
+};
+
+// An `owner` list filter: empty (anyone) or a user name (policy/users.hpp).
+grpc::Status check_owner_filter(const std::string& owner);
 
 grpc::Status invalid(const std::string& field, const std::string& rule);
 grpc::Status not_found(const std::string& id);

@@ -30,12 +30,14 @@ namespace {
 // A running job gets this long to stop by itself before CancelJob records the cancellation.
 constexpr double kCancelGraceS = 0.8;
 
-// The filters a page token is bound to (AIP-158: other fields must match across pages).
+// The filters a page token is bound to (AIP-158: other fields must match across pages). Tokens
+// of requests without an owner are the same as before owners existed.
 std::string list_fingerprint(const v1::ListJobsRequest& req) {
   std::string f = std::to_string(req.state()) + "|" + req.label() + "|";
   if (req.has_created_after()) f += std::to_string(timestamp_us(req.created_after()));
   f += "|";
   if (req.has_created_before()) f += std::to_string(timestamp_us(req.created_before()));
+  if (!req.owner().empty()) f += "|" + req.owner();
   return sha256_hex(f).substr(0, 16);
 }
 
@@ -100,6 +102,7 @@ void SimulationService::fill_job(const JobRecord& r, v1::Job* job) const {
   job->set_grid_id(r.grid_id);
   job->set_grid_index(r.grid_index);
   job->set_reused_from(r.reused_from);
+  job->set_owner(r.owner);
 }
 
 std::string SimulationService::without_data_dir(const std::string& text,
@@ -132,22 +135,29 @@ std::optional<JobRecord> SimulationService::wait_terminal(const std::string& id,
 
 Status SimulationService::SubmitJob(grpc::ServerContext* ctx, const v1::SubmitJobRequest* req,
                                     v1::Job* resp) {
-  return guarded(auth_, ctx, "SubmitJob", [&] {
+  return audited(auth_, ctx, "SubmitJob", [&](const Caller& caller, AuditRecord& audit) {
     auto hold = meshes_.hold_for_submit();  // its mesh cannot be deleted before the insert
-    return submit(ctx, *req, resp);
+    return submit(ctx, caller, *req, resp, audit);
   });
 }
 
-Status SimulationService::submit(grpc::ServerContext* ctx, const v1::SubmitJobRequest& req,
-                                 v1::Job* resp) {
+Status SimulationService::submit(grpc::ServerContext* ctx, const Caller& caller,
+                                 const v1::SubmitJobRequest& req, v1::Job* resp,
+                                 AuditRecord& audit) {
   if (Status s = check_request_id_and_labels(req.request_id(), req.labels()); !s.ok()) return s;
   // A repeated request_id returns the first job, even when the queue is full (AIP-155).
   if (!req.request_id().empty()) {
     if (auto existing = catalogue_.find_by_request_id(req.request_id())) {
+      audit.resource = "jobs/" + existing->id;
+      audit.detail = "repeat=request_id";
       fill_job(*existing, resp);
       return Status::OK;
     }
   }
+  // No new work while the disk is below its reserve: it could not run, and the catalogue keeps
+  // its room (a full disk also fails the insert itself: CatalogueFull).
+  runner_.require_free_space();
+  catalogue_.keep_room();  // taken back first if a full disk used it
   CanonicalSpec spec;
   try {
     spec = daemon_canonical_spec(req.spec(), config_.limits, meshes_);
@@ -163,6 +173,7 @@ Status SimulationService::submit(grpc::ServerContext* ctx, const v1::SubmitJobRe
   job.labels.insert(req.labels().begin(), req.labels().end());
   job.priority = req.priority();
   job.reuse_result = req.reuse_result();
+  job.owner = caller.user;
 
   if (!scheduler_.reserve()) {
     return {StatusCode::RESOURCE_EXHAUSTED, "the queue is full (" +
@@ -176,7 +187,7 @@ Status SimulationService::submit(grpc::ServerContext* ctx, const v1::SubmitJobRe
       job.id = new_job_id();
       job.create_us = now_us();
       try {
-        inserted = catalogue_.insert(job);
+        inserted = catalogue_.insert(job, config_.quotas.max_queued_per_user);
         break;
       } catch (const CatalogueError&) {
         if (tries >= 2 || catalogue_.get(job.id) == std::nullopt) throw;
@@ -186,6 +197,11 @@ Status SimulationService::submit(grpc::ServerContext* ctx, const v1::SubmitJobRe
     scheduler_.release();
     throw;
   }
+  if (inserted.refused) {
+    scheduler_.release();
+    throw_queued_quota(config_.quotas, caller.user, inserted.owner_queued, 1);
+  }
+  audit.resource = "jobs/" + inserted.job.id;
   if (!inserted.created) {
     scheduler_.release();  // raced with the same request_id
   } else if (job.reuse_result && runner_.reuse_identical(inserted.job)) {
@@ -194,8 +210,8 @@ Status SimulationService::submit(grpc::ServerContext* ctx, const v1::SubmitJobRe
   } else {
     scheduler_.enqueue(inserted.job.id, inserted.job.priority, inserted.job.seq, true);
     events_.notify(inserted.job.id);
-    log_info("job ", inserted.job.id, " submitted (priority ", inserted.job.priority, ", spec ",
-             inserted.job.spec_hash.substr(0, 12), ")");
+    log_info("job ", inserted.job.id, " submitted by ", caller.user, " (priority ",
+             inserted.job.priority, ", spec ", inserted.job.spec_hash.substr(0, 12), ")");
   }
   fill_job(inserted.job, resp);
   return Status::OK;
@@ -245,6 +261,8 @@ Status SimulationService::list(const v1::ListJobsRequest& req, v1::ListJobsRespo
   }
   if (req.has_created_after()) filter.created_after_us = timestamp_us(req.created_after());
   if (req.has_created_before()) filter.created_before_us = timestamp_us(req.created_before());
+  if (Status s = check_owner_filter(req.owner()); !s.ok()) return s;
+  filter.owner = req.owner();
   const std::string fingerprint = list_fingerprint(req);
   std::string cursor;
   if (Status s = read_page_token(req.page_token(), fingerprint, &cursor); !s.ok()) return s;
@@ -253,11 +271,21 @@ Status SimulationService::list(const v1::ListJobsRequest& req, v1::ListJobsRespo
   }
   filter.limit = page_size + 1;  // one extra row tells whether another page exists
   auto rows = catalogue_.list(filter);
-  const bool more = static_cast<int>(rows.size()) > page_size;
+  bool more = static_cast<int>(rows.size()) > page_size;
   if (more) rows.resize(static_cast<std::size_t>(page_size));
-  for (const auto& r : rows) fill_job(r, resp->add_jobs());
-  if (more)
-    resp->set_next_page_token(make_page_token(std::to_string(rows.back().seq), fingerprint));
+  PageBudget budget;
+  int64_t last_seq = 0;
+  for (const auto& r : rows) {
+    v1::Job job;
+    fill_job(r, &job);
+    if (!budget.take(job.ByteSizeLong())) {
+      more = true;  // the rest comes on the next page
+      break;
+    }
+    *resp->add_jobs() = std::move(job);
+    last_seq = r.seq;
+  }
+  if (more) resp->set_next_page_token(make_page_token(std::to_string(last_seq), fingerprint));
   return Status::OK;
 }
 
@@ -317,16 +345,18 @@ Status SimulationService::watch(grpc::ServerContext* ctx, const std::string& id,
 
 Status SimulationService::CancelJob(grpc::ServerContext* ctx, const v1::CancelJobRequest* req,
                                     v1::Job* resp) {
-  return guarded(auth_, ctx, "CancelJob", [&]() -> Status {
+  return audited(auth_, ctx, "CancelJob", [&](const Caller& caller, AuditRecord& audit) -> Status {
     std::string id;
     if (Status st = requested_id(*req, "jobs/", &id); !st.ok()) return st;
-    return cancel(id, resp);
+    audit.resource = "jobs/" + id;
+    return cancel(caller, id, resp);
   });
 }
 
-Status SimulationService::cancel(const std::string& id, v1::Job* resp) {
+Status SimulationService::cancel(const Caller& caller, const std::string& id, v1::Job* resp) {
   auto record = catalogue_.get(id);
   if (!record) return not_found(id);
+  require_may_modify(caller, "jobs/" + id, record->owner, "cancel");
   if (is_terminal(record->state)) {
     return {StatusCode::FAILED_PRECONDITION,
             "job " + id + " is already " + to_string(record->state)};
@@ -362,19 +392,22 @@ Status SimulationService::cancel(const std::string& id, v1::Job* resp) {
 
 Status SimulationService::DeleteJob(grpc::ServerContext* ctx, const v1::DeleteJobRequest* req,
                                     v1::DeleteJobResponse*) {
-  return guarded(auth_, ctx, "DeleteJob", [&]() -> Status {
+  return audited(auth_, ctx, "DeleteJob", [&](const Caller& caller, AuditRecord& audit) -> Status {
     std::string id;
     if (Status st = requested_id(*req, "jobs/", &id); !st.ok()) return st;
-    return erase(id);
+    audit.resource = "jobs/" + id;
+    return erase(caller, id);
   });
 }
 
-Status SimulationService::erase(const std::string& id) {
+Status SimulationService::erase(const Caller& caller, const std::string& id) {
   auto record = catalogue_.get(id);
   if (!record) return not_found(id);
+  require_may_modify(caller, "jobs/" + id, record->owner, "delete");
   if (!is_terminal(record->state)) {
     v1::Job ignored;
-    if (Status s = cancel(id, &ignored); !s.ok() && s.error_code() != StatusCode::NOT_FOUND) {
+    if (Status s = cancel(caller, id, &ignored);
+        !s.ok() && s.error_code() != StatusCode::NOT_FOUND) {
       return s;
     }
     record = catalogue_.get(id);
@@ -383,6 +416,7 @@ Status SimulationService::erase(const std::string& id) {
               "job " + id + " is still stopping; retry DeleteJob in a few seconds"};
     }
   }
+  // Works on a full disk: the catalogue uses its reserved room if it must (catalogue_room.hpp).
   catalogue_.erase(id);
   // Rows first, then files: a crash in between leaves an orphan folder, which the next
   // start-up removes; the other order could leave a row pointing at nothing.
@@ -390,8 +424,21 @@ Status SimulationService::erase(const std::string& id) {
   fs::remove_all(runner_.job_dir(id), ec);
   if (ec) log_warning("job ", id, ": removing ", runner_.job_dir(id), ": ", ec.message());
   events_.forget(id);
+  // The space just freed first gives the catalogue back the room it may have used.
+  catalogue_.keep_room();
   log_info("job ", id, " deleted");
   return Status::OK;
+}
+
+// --- GetCaller ------------------------------------------------------------------------------
+
+Status SimulationService::GetCaller(grpc::ServerContext* ctx, const v1::GetCallerRequest*,
+                                    v1::Caller* resp) {
+  return guarded(auth_, ctx, "GetCaller", [&](const Caller& caller) {
+    resp->set_user(caller.user);
+    resp->set_role(to_string(caller.role));
+    return Status::OK;
+  });
 }
 
 }  // namespace softshock::server

@@ -13,6 +13,8 @@
 #include "server/jobs/job_events.hpp"
 #include "server/jobs/job_runner.hpp"
 #include "server/jobs/scheduler.hpp"
+#include "server/policy/audit.hpp"
+#include "server/policy/quotas.hpp"
 #include "server/store/catalogue.hpp"
 #include "server/store/mesh_store.hpp"
 #include "server/transport/auth.hpp"
@@ -28,6 +30,7 @@ struct ServiceConfig {
   int max_streams = 64;               // concurrent WatchJob + GetField streams
   double watch_min_interval_s = 0.2;  // at most ~5 WatchJob updates per second
   double cancel_wait_s = 5.0;         // CancelJob/DeleteJob wait this long for a running job
+  QuotaLimits quotas;                 // max_queued_per_user (the mesh bounds are the store's)
 };
 
 class SimulationService final : public v1::SimulationService::Service {
@@ -68,17 +71,21 @@ class SimulationService final : public v1::SimulationService::Service {
                                 v1::GridReduction* resp) override;
   grpc::Status QueryJobs(grpc::ServerContext* ctx, const v1::QueryJobsRequest* req,
                          v1::QueryJobsResponse* resp) override;
+  grpc::Status GetCaller(grpc::ServerContext* ctx, const v1::GetCallerRequest* req,
+                         v1::Caller* resp) override;
 
   int active_streams() const { return active_streams_.load(); }
 
  private:
   friend class StreamSlot;
-  grpc::Status submit(grpc::ServerContext* ctx, const v1::SubmitJobRequest& req, v1::Job* resp);
+  grpc::Status submit(grpc::ServerContext* ctx, const Caller& caller,
+                      const v1::SubmitJobRequest& req, v1::Job* resp, AuditRecord& audit);
   grpc::Status list(const v1::ListJobsRequest& req, v1::ListJobsResponse* resp);
   grpc::Status watch(grpc::ServerContext* ctx, const std::string& id,
                      grpc::ServerWriter<v1::Job>* writer);
-  grpc::Status cancel(const std::string& id, v1::Job* resp);
-  grpc::Status erase(const std::string& id);
+  // Cancel and delete check the owner first (policy/ownership.hpp).
+  grpc::Status cancel(const Caller& caller, const std::string& id, v1::Job* resp);
+  grpc::Status erase(const Caller& caller, const std::string& id);
   grpc::Status summary(const std::string& id, v1::JobSummary* resp);
   grpc::Status time_series(const v1::GetTimeSeriesRequest& req, v1::TimeSeries* resp);
   grpc::Status modes(const v1::GetModesRequest& req, v1::Modes* resp);
@@ -89,9 +96,9 @@ class SimulationService final : public v1::SimulationService::Service {
                         std::size_t frame, int components, bool node_field, int nx, int ny,
                         std::size_t max_triangles, std::vector<double>& values,
                         v1::FieldHeader* header) const;
-  grpc::Status submit_grid(grpc::ServerContext* ctx, const v1::SubmitGridRequest& req,
-                           v1::Grid* resp);
-  grpc::Status cancel_grid(const std::string& id, v1::Grid* resp);
+  grpc::Status submit_grid(grpc::ServerContext* ctx, const Caller& caller,
+                           const v1::SubmitGridRequest& req, v1::Grid* resp, AuditRecord& audit);
+  grpc::Status cancel_grid(const Caller& caller, const std::string& id, v1::Grid* resp);
   grpc::Status grid_reduction(const v1::GetGridReductionRequest& req, v1::GridReduction* resp);
   grpc::Status query(const v1::QueryJobsRequest& req, v1::QueryJobsResponse* resp);
   // The grid with its live counts, progress and derived state.

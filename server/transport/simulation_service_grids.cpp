@@ -79,6 +79,7 @@ void SimulationService::fill_grid(const GridRecord& r, v1::Grid* grid) const {
   grid->set_point_count(r.point_count);
   grid->set_request_id(r.request_id);
   grid->set_cancelled(r.cancelled);
+  grid->set_owner(r.owner);
   set_timestamp(r.create_us, grid->mutable_create_time());
   const GridCounts c = catalogue_.grid_counts(r.id);
   auto count = [&](JobState s) {
@@ -105,21 +106,26 @@ void SimulationService::fill_grid(const GridRecord& r, v1::Grid* grid) const {
 
 Status SimulationService::SubmitGrid(grpc::ServerContext* ctx, const v1::SubmitGridRequest* req,
                                      v1::Grid* resp) {
-  return guarded(auth_, ctx, "SubmitGrid", [&] {
+  return audited(auth_, ctx, "SubmitGrid", [&](const Caller& caller, AuditRecord& audit) {
     auto hold = meshes_.hold_for_submit();
-    return submit_grid(ctx, *req, resp);
+    return submit_grid(ctx, caller, *req, resp, audit);
   });
 }
 
-Status SimulationService::submit_grid(grpc::ServerContext* ctx, const v1::SubmitGridRequest& req,
-                                      v1::Grid* resp) {
+Status SimulationService::submit_grid(grpc::ServerContext* ctx, const Caller& caller,
+                                      const v1::SubmitGridRequest& req, v1::Grid* resp,
+                                      AuditRecord& audit) {
   if (Status s = check_request_id_and_labels(req.request_id(), req.labels()); !s.ok()) return s;
   if (!req.request_id().empty()) {
     if (auto existing = catalogue_.find_grid_by_request_id(req.request_id())) {
+      audit.resource = "grids/" + existing->id;
+      audit.detail = "repeat=request_id";
       fill_grid(*existing, resp);
       return Status::OK;
     }
   }
+  runner_.require_free_space();
+  catalogue_.keep_room();
   CanonicalSpec base;
   GridPlan plan;
   try {
@@ -153,6 +159,7 @@ Status SimulationService::submit_grid(grpc::ServerContext* ctx, const v1::Submit
   grid.id = new_job_id();
   grid.request_id = req.request_id();
   grid.create_us = now_us();
+  grid.owner = caller.user;
   (void)google::protobuf::util::MessageToJsonString(definition, &grid.definition);
 
   // Identical runs are computed once: a point whose canonical spec matches a SUCCEEDED job
@@ -171,6 +178,7 @@ Status SimulationService::submit_grid(grpc::ServerContext* ctx, const v1::Submit
     p.create_us = grid.create_us;
     p.grid_id = grid.id;
     p.grid_index = static_cast<int>(i);
+    p.owner = caller.user;
     p.reuse_result = !req.recompute();
     if (p.reuse_result) sources[i] = catalogue_.find_reusable(p.spec_hash);
     if (!sources[i]) ++to_run;
@@ -201,12 +209,20 @@ Status SimulationService::submit_grid(grpc::ServerContext* ctx, const v1::Submit
         ++reserved;
       }
     }
-    inserted = catalogue_.insert_grid(grid, points);
+    inserted = catalogue_.insert_grid(grid, points, config_.quotas.max_queued_per_user);
   } catch (...) {
     remove_links();
     scheduler_.release(reserved);
     throw;
   }
+  if (inserted.refused) {
+    remove_links();
+    scheduler_.release(reserved);
+    throw_queued_quota(config_.quotas, caller.user, inserted.owner_queued,
+                       static_cast<std::int64_t>(reserved));
+  }
+  audit.resource = "grids/" + inserted.grid.id;
+  audit.detail = "points=" + std::to_string(points.size());
   std::size_t reused = 0;
   if (!inserted.created) {
     // Raced with the same request_id: the other submission's grid stands.
@@ -220,8 +236,8 @@ Status SimulationService::submit_grid(grpc::ServerContext* ctx, const v1::Submit
       }
       scheduler_.enqueue(points[i].id, points[i].priority, inserted.point_seqs[i], true);
     }
-    log_info("grid ", grid.id, " submitted: ", points.size(), " points, ", reused,
-             " reusing identical runs");
+    log_info("grid ", grid.id, " submitted by ", caller.user, ": ", points.size(), " points, ",
+             reused, " reusing identical runs");
   }
   fill_grid(inserted.grid, resp);
   return Status::OK;
@@ -244,33 +260,49 @@ Status SimulationService::ListGrids(grpc::ServerContext* ctx, const v1::ListGrid
   return guarded(auth_, ctx, "ListGrids", [&]() -> Status {
     int page_size = 0;
     if (Status s = page_size_of(req->page_size(), &page_size); !s.ok()) return s;
+    if (Status s = check_owner_filter(req->owner()); !s.ok()) return s;
+    // Tokens without an owner filter read as before owners existed.
+    const std::string fingerprint = req->owner().empty() ? "grids" : "grids|" + req->owner();
     std::string cursor;
-    if (Status s = read_page_token(req->page_token(), "grids", &cursor); !s.ok()) return s;
+    if (Status s = read_page_token(req->page_token(), fingerprint, &cursor); !s.ok()) return s;
     int64_t before_seq = 0;
     if (!cursor.empty() && !parse_seq_cursor(cursor, &before_seq)) {
       return invalid("page_token", "not a token this server issued");
     }
-    auto rows = catalogue_.list_grids(before_seq, page_size + 1);
-    const bool more = static_cast<int>(rows.size()) > page_size;
+    auto rows = catalogue_.list_grids(before_seq, page_size + 1, req->owner());
+    bool more = static_cast<int>(rows.size()) > page_size;
     if (more) rows.resize(static_cast<std::size_t>(page_size));
-    for (const auto& r : rows) fill_grid(r, resp->add_grids());
-    if (more) resp->set_next_page_token(make_page_token(std::to_string(rows.back().seq), "grids"));
+    PageBudget budget;
+    int64_t last_seq = 0;
+    for (const auto& r : rows) {
+      v1::Grid grid;
+      fill_grid(r, &grid);
+      if (!budget.take(grid.ByteSizeLong())) {
+        more = true;
+        break;
+      }
+      *resp->add_grids() = std::move(grid);
+      last_seq = r.seq;
+    }
+    if (more) resp->set_next_page_token(make_page_token(std::to_string(last_seq), fingerprint));
     return Status::OK;
   });
 }
 
 Status SimulationService::CancelGrid(grpc::ServerContext* ctx, const v1::CancelGridRequest* req,
                                      v1::Grid* resp) {
-  return guarded(auth_, ctx, "CancelGrid", [&]() -> Status {
+  return audited(auth_, ctx, "CancelGrid", [&](const Caller& caller, AuditRecord& audit) -> Status {
     std::string id;
     if (Status st = requested_id(*req, "grids/", &id); !st.ok()) return st;
-    return cancel_grid(id, resp);
+    audit.resource = "grids/" + id;
+    return cancel_grid(caller, id, resp);
   });
 }
 
-Status SimulationService::cancel_grid(const std::string& id, v1::Grid* resp) {
+Status SimulationService::cancel_grid(const Caller& caller, const std::string& id, v1::Grid* resp) {
   auto record = catalogue_.get_grid(id);
   if (!record) return grid_not_found(id);
+  require_may_modify(caller, "grids/" + id, record->owner, "cancel");
   v1::Grid before;
   fill_grid(*record, &before);
   if (before.state() == v1::SUCCEEDED || before.state() == v1::FAILED ||

@@ -74,6 +74,8 @@ Status SimulationService::query(const v1::QueryJobsRequest& req, v1::QueryJobsRe
   if (!req.grid_id().empty() && !parse_id(req.grid_id(), &q.grid_id, "grids/")) {
     return invalid("grid_id", "not a grid name");
   }
+  if (Status s = check_owner_filter(req.owner()); !s.ok()) return s;
+  q.owner = req.owner();
   if (!req.order_by().empty()) {
     std::istringstream words(req.order_by());
     std::string column, direction, extra;
@@ -109,19 +111,27 @@ Status SimulationService::query(const v1::QueryJobsRequest& req, v1::QueryJobsRe
   }
   q.limit = page_size + 1;
   auto rows = catalogue_.query(q);
-  const bool more = static_cast<int>(rows.size()) > page_size;
+  bool more = static_cast<int>(rows.size()) > page_size;
   if (more) rows.resize(static_cast<std::size_t>(page_size));
+  PageBudget budget;
+  const QueryRow* last = nullptr;
   for (const auto& row : rows) {
-    auto* out = resp->add_jobs();
-    fill_job(row.job, out->mutable_job());
-    fill_groups(row.groups, out->mutable_groups());
-    if (row.summary) fill_summary(row.job.id, *row.summary, out->mutable_summary());
+    v1::QueriedJob out;
+    fill_job(row.job, out.mutable_job());
+    fill_groups(row.groups, out.mutable_groups());
+    if (row.summary) fill_summary(row.job.id, *row.summary, out.mutable_summary());
+    if (!budget.take(out.ByteSizeLong())) {
+      more = true;
+      break;
+    }
+    *resp->add_jobs() = std::move(out);
+    last = &row;
   }
-  if (more) {
+  if (more && last != nullptr) {
     uint64_t bits = 0;
-    std::memcpy(&bits, &rows.back().sort_key, sizeof bits);
+    std::memcpy(&bits, &last->sort_key, sizeof bits);
     std::ostringstream key;
-    key << std::hex << bits << "," << std::dec << rows.back().job.seq;
+    key << std::hex << bits << "," << std::dec << last->job.seq;
     resp->set_next_page_token(make_page_token(key.str(), fingerprint));
   }
   return Status::OK;

@@ -287,6 +287,45 @@ class KubernetesTest(unittest.TestCase):
         self.assertNotIn("secret.example.yaml", k["resources"])
 
 
+class UsersOverlayTest(unittest.TestCase):
+    """How users are added (docs/deploy.md, "Users"): compose.users.yaml over compose.yaml, and
+    users-patch.yaml over the StatefulSet, both pointing SOFTSHOCK_USERS_FILE at a secret file."""
+
+    def test_compose_overlay_mounts_the_users_file_it_names(self):
+        (overlay,) = load_yaml_documents("compose.users.yaml")
+        service = overlay["services"]["softshockd"]
+        (secret,) = service["secrets"]
+        self.assertIn("file", overlay["secrets"][secret["source"]])
+        self.assertEqual(service["environment"]["SOFTSHOCK_USERS_FILE"],
+                         f"/run/secrets/{secret['target']}")
+        (base,) = load_yaml_documents("compose.yaml")
+        self.assertNotIn(secret["source"], base["secrets"], "a second secret, not a replacement")
+        settings = daemon_settings().values()
+        for key in service["environment"]:
+            self.assertIn(key, settings)
+
+    def test_kubernetes_patch_mounts_the_users_secret_it_names(self):
+        (patch,) = load_yaml_documents("k8s/users-patch.yaml")
+        pod = patch["spec"]["template"]["spec"]
+        (container,) = pod["containers"]
+        (sts,) = load_yaml_documents("k8s/statefulset.yaml")
+        self.assertEqual(container["name"], sts["spec"]["template"]["spec"]["containers"][0]["name"])
+        env = {e["name"]: e["value"] for e in container["env"]}
+        (mount,) = container["volumeMounts"]
+        (volume,) = pod["volumes"]
+        self.assertEqual(mount["name"], volume["name"])
+        self.assertTrue(mount["readOnly"])
+        (item,) = volume["secret"]["items"]
+        self.assertEqual(env["SOFTSHOCK_USERS_FILE"], f"{mount['mountPath']}/{item['path']}")
+        self.assertEqual(volume["secret"]["defaultMode"] & 0o007, 0, "others may read it")
+        (example,) = load_yaml_documents("k8s/users.example.yaml")
+        self.assertEqual(example["metadata"]["name"], volume["secret"]["secretName"])
+        self.assertIn(item["key"], example["stringData"])
+        (k,) = load_yaml_documents("k8s/kustomization.yaml")
+        self.assertNotIn("users.example.yaml", k["resources"])
+        self.assertIn("SOFTSHOCK_USERS_FILE", daemon_settings().values())
+
+
 class DocumentationTest(unittest.TestCase):
     def test_deploy_doc_names_every_setting(self):
         with open(os.path.join(SOURCE_DIR, "docs", "deploy.md"), encoding="utf-8") as f:

@@ -51,7 +51,7 @@ struct Fixture {
   JobEvents events;
   std::unique_ptr<JobRunner> runner;
   std::unique_ptr<LocalExecutor> executor;
-  Authenticator auth{""};
+  Authenticator auth;  // no users: authentication off, every call the default admin
   std::unique_ptr<MeshStore> meshes;
   std::unique_ptr<SimulationService> service;
   std::string job_id = "fuzzjob";

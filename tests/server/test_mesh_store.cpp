@@ -241,7 +241,7 @@ TEST_F(MeshStoreTest, ConcurrentUploadsAreBounded) {
   a.reset();  // finished (here: abandoned, its staged file removed)
   auto c = s.begin_upload();
   c->append(square_msh());
-  EXPECT_EQ(s.commit(*c, "c.msh", 0).elements(), 2);
+  EXPECT_EQ(s.commit(*c, "c.msh", kDefaultUser, 0).elements(), 2);
   b.reset(), c.reset();
   EXPECT_TRUE(leftovers(dir_ / "meshes" / "uploads").empty());
 }

@@ -311,9 +311,11 @@ class Client:
         return self._call(self._stub.GetJob, service_pb2.GetJobRequest(id=job_id))
 
     def list(self, state: Optional[Union[str, int]] = None, label: Optional[str] = None,
-             limit: Optional[int] = None, page_size: int = 0) -> List:
-        """Jobs, newest first, following page tokens until `limit` (None = all)."""
-        request = service_pb2.ListJobsRequest(label=label or "")
+             limit: Optional[int] = None, page_size: int = 0,
+             owner: Optional[str] = None) -> List:
+        """Jobs, newest first, following page tokens until `limit` (None = all). `owner`: only
+        that user's jobs (your own: owner=client.whoami()[0])."""
+        request = service_pb2.ListJobsRequest(label=label or "", owner=owner or "")
         if state is not None:
             request.state = service_pb2.JobState.Value(state) if isinstance(state, str) else state
         jobs = []
@@ -367,6 +369,11 @@ class Client:
             if timeout is not None and time.monotonic() - start > timeout:
                 raise TimeoutError(f"job {job_id} still {state_name(last)} after {timeout} s")
         return last
+
+    def whoami(self) -> Tuple[str, str]:
+        """(user, role) the client's token names on the daemon; role is "user" or "admin"."""
+        caller = self._call(self._stub.GetCaller, service_pb2.GetCallerRequest())
+        return caller.user, caller.role
 
     def cancel(self, job_id: str):
         return self._call(self._stub.CancelJob, service_pb2.CancelJobRequest(id=job_id))
@@ -525,18 +532,21 @@ class Client:
         return self._call(lambda _, **kw: self._meshes.UploadMesh(upload_requests(path), **kw),
                           None)
 
-    def list_meshes(self) -> List:
-        out, token = [], ""
+    def list_meshes(self, owner: Optional[str] = None) -> List:
+        """Uploaded meshes by id; `owner`: only that user's."""
+        out, token, owner = [], "", owner or ""
         while True:
             page = self._call(self._meshes.ListMeshes,
-                              service_pb2.ListMeshesRequest(page_size=1000, page_token=token))
+                              service_pb2.ListMeshesRequest(page_size=1000, page_token=token,
+                                                            owner=owner))
             out.extend(page.meshes)
             token = page.next_page_token
             if not token:
                 return out
 
     def delete_mesh(self, mesh_id: str) -> None:
-        """Refused (FAILED_PRECONDITION) while a queued or running job uses the mesh."""
+        """Refused (FAILED_PRECONDITION) while a queued or running job uses the mesh, and
+        (PERMISSION_DENIED) for another user's mesh unless the caller is an admin."""
         self._call(self._meshes.DeleteMesh, service_pb2.DeleteMeshRequest(name=mesh_id))
 
     def _with_uploaded_mesh(self, spec, base_dir):
@@ -554,8 +564,9 @@ class Client:
     def grid(self, grid_id: str):
         return self._call(self._stub.GetGrid, service_pb2.GetGridRequest(id=grid_id))
 
-    def list_grids(self) -> List:
-        request, grids = service_pb2.ListGridsRequest(page_size=1000), []
+    def list_grids(self, owner: Optional[str] = None) -> List:
+        request = service_pb2.ListGridsRequest(page_size=1000, owner=owner or "")
+        grids = []
         while True:
             page = self._call(self._stub.ListGrids, request)
             grids.extend(page.grids)
@@ -596,13 +607,15 @@ class Client:
     # -- result database -------------------------------------------------------------------------
     def query(self, where: Sequence = (), state: Optional[Union[str, int]] = None,
               grid_id: Optional[str] = None, order_by: Optional[str] = None,
-              limit: Optional[int] = None) -> List[dict]:
+              limit: Optional[int] = None, owner: Optional[str] = None) -> List[dict]:
         """Catalogued jobs whose groups and summary figures pass every filter ("pbar>=0.5",
         "gamma>6", "max_abar_first_cycle>0.01", "pbar=0.5..1.5" or RangeFilter messages),
         sorted by `order_by` ("max_abar desc"); answered from the catalogue alone. Each row is
-        a dict: id, state, grid_id, grid_index, reused_from, the groups by name (NaN if not
-        known) and "summary" (a dict, or None for unfinished jobs)."""
-        request = service_pb2.QueryJobsRequest(grid_id=grid_id or "", order_by=order_by or "")
+        a dict: id, state, owner, grid_id, grid_index, reused_from, the groups by name (NaN if
+        not known) and "summary" (a dict, or None for unfinished jobs). `owner`: only that
+        user's jobs."""
+        request = service_pb2.QueryJobsRequest(grid_id=grid_id or "", order_by=order_by or "",
+                                               owner=owner or "")
         request.filters.extend(w if isinstance(w, service_pb2.RangeFilter) else parse_where(w)
                                for w in where)
         if state is not None:
@@ -612,7 +625,8 @@ class Client:
             request.page_size = 1000 if limit is None else max(1, min(1000, limit - len(rows)))
             page = self._call(self._stub.QueryJobs, request)
             for q in page.jobs:
-                row = {"id": q.job.id, "state": state_name(q.job), "grid_id": q.job.grid_id,
+                row = {"id": q.job.id, "state": state_name(q.job), "owner": q.job.owner,
+                       "grid_id": q.job.grid_id,
                        "grid_index": q.job.grid_index, "reused_from": q.job.reused_from}
                 row.update({k: v for k, v in message_to_dict(q.groups).items()})
                 row["summary"] = message_to_dict(q.summary) if q.HasField("summary") else None
