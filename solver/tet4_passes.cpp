@@ -182,7 +182,8 @@ __attribute__((target_clones("avx512f", "avx2", "default"))) void correct_nodes(
 
 __attribute__((target_clones("avx512f", "avx2", "default"))) void correct_nodes_blended(
     double dt, std::size_t begin, std::size_t end, const NodeForce3* force, ConstComponents3 fext,
-    Flags3 free, const double* mass, Components3 a, Components3 fprev, Components3 p) {
+    Flags3 free, const double* mass, Components3 a, Components3 fprev, Components3 p,
+    NodeForce3* a_rows) {
   for (int c = 0; c < 3; ++c) {
     const double* __restrict fc = fext[c];
     const uint8_t* __restrict free_c = free[c];
@@ -196,6 +197,8 @@ __attribute__((target_clones("avx512f", "avx2", "default"))) void correct_nodes_
       fprev_c[i] = f;
     }
   }
+  for (std::size_t i = begin; i < end; ++i)
+    a_rows[i].lanes = ForceLanes3{a[0][i], a[1][i], a[2][i], 0.0};
 }
 
 __attribute__((target_clones("avx512f", "avx2", "default"))) void correct_mass_blend(
@@ -218,35 +221,28 @@ std::vector<double> consistent_mass_weights(const Tet4Geometry& g, double densit
   return weight;
 }
 
-// Blocked like the other element passes: the corners' accelerations gathered into contiguous
-// buffers, the differences computed vectorised, then added to the nodes in element order (a
-// scalar loop over 4-lane rows cost 34 ns per element at 100k, measured).
+// Element by element on the rows: the three components of a corner in one 4-lane vector (the
+// fourth lane stays 0), the sums and differences as the three component-wise loops computed them.
+// Gathering three separate arrays into blocked buffers first cost 17 ns per element in cache and
+// 20-24 at 100k; a row per corner needs one load per corner instead of three (measured below, in
+// docs/performance.md "3-D").
 __attribute__((target_clones("avx512f", "avx2", "default"))) void
 accumulate_consistent_mass_difference(const Tet4Geometry& g, const double* weight,
-                                      ConstComponents3 a, std::size_t begin, std::size_t end,
+                                      const NodeForce3* a, std::size_t begin, std::size_t end,
                                       NodeForce3* difference) {
-  const int32_t* corner_of[4] = {g.node0.data(), g.node1.data(), g.node2.data(), g.node3.data()};
-  alignas(64) double corner[4][3][kBlock], out[4][3][kBlock];
-  for (std::size_t block = begin; block < end; block += kBlock) {
-    const std::size_t count = std::min(kBlock, end - block);
-    for (int v = 0; v < 4; ++v)
-      for (std::size_t k = 0; k < count; ++k) {
-        const int32_t i = corner_of[v][block + k];
-        corner[v][0][k] = a[0][i], corner[v][1][k] = a[1][i], corner[v][2][k] = a[2][i];
-      }
-#pragma GCC ivdep
-    for (std::size_t k = 0; k < count; ++k) {
-      const double w = weight[block + k];
-      for (int c = 0; c < 3; ++c) {
-        const double sum = corner[0][c][k] + corner[1][c][k] + corner[2][c][k] + corner[3][c][k];
-        // sum of the other three minus 3 a_i = sum - 4 a_i
-        for (int v = 0; v < 4; ++v) out[v][c][k] = w * (sum - 4.0 * corner[v][c][k]);
-      }
-    }
-    for (std::size_t k = 0; k < count; ++k)
-      for (int v = 0; v < 4; ++v)
-        difference[corner_of[v][block + k]].lanes +=
-            ForceLanes3{out[v][0][k], out[v][1][k], out[v][2][k], 0.0};
+  const int32_t *n0 = g.node0.data(), *n1 = g.node1.data(), *n2 = g.node2.data(),
+                *n3 = g.node3.data();
+  for (std::size_t e = begin; e < end; ++e) {
+    const int32_t i[4] = {n0[e], n1[e], n2[e], n3[e]};
+    const ForceLanes3 a0 = a[i[0]].lanes, a1 = a[i[1]].lanes, a2 = a[i[2]].lanes,
+                      a3 = a[i[3]].lanes;
+    const ForceLanes3 sum = a0 + a1 + a2 + a3;
+    const double w = weight[e];
+    // sum of the other three minus 3 a_i = sum - 4 a_i
+    difference[i[0]].lanes += w * (sum - 4.0 * a0);
+    difference[i[1]].lanes += w * (sum - 4.0 * a1);
+    difference[i[2]].lanes += w * (sum - 4.0 * a2);
+    difference[i[3]].lanes += w * (sum - 4.0 * a3);
   }
 }
 
@@ -255,7 +251,7 @@ void blended_momentum(const Tet4Geometry& geometry, const double* weight, double
                       Components3 p) {
   std::array<std::vector<double>, 3> y;
   for (int c = 0; c < 3; ++c) y[c].assign(v[c], v[c] + nodes);
-  std::vector<NodeForce3> difference(nodes);
+  std::vector<NodeForce3> difference(nodes), y_rows(nodes);
   double size = 0;
   for (std::size_t i = 0; i < nodes; ++i)
     for (int c = 0; c < 3; ++c) {
@@ -264,8 +260,10 @@ void blended_momentum(const Tet4Geometry& geometry, const double* weight, double
     }
   for (int k = 1; k <= 400 && size > 0; ++k) {  // ratio <= 4/5: 400 terms reach any round-off
     std::fill(difference.begin(), difference.end(), NodeForce3{});
-    accumulate_consistent_mass_difference(geometry, weight, {y[0].data(), y[1].data(), y[2].data()},
-                                          0, geometry.size(), difference.data());
+    for (std::size_t i = 0; i < nodes; ++i)
+      y_rows[i].lanes = ForceLanes3{y[0][i], y[1][i], y[2][i], 0.0};
+    accumulate_consistent_mass_difference(geometry, weight, y_rows.data(), 0, geometry.size(),
+                                          difference.data());
     double term = 0;
     for (std::size_t i = 0; i < nodes; ++i)
       for (int c = 0; c < 3; ++c) {

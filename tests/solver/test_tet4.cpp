@@ -298,12 +298,9 @@ TEST(Tet4, ConsistentMassBlendOperator) {
   const double lumped = 1000.0 * g.volume0[0] / 4.0;
   Eigen::Matrix4d s;
   for (int j = 0; j < 4; ++j) {
-    NodalVector<3> a;
-    for (auto& c : a) c.assign(4, 0.0);
-    a[0][j] = 1.0;
-    std::vector<NodeForce3> diff(4);
-    accumulate_consistent_mass_difference(g, weight.data(), {a[0].data(), a[1].data(), a[2].data()},
-                                          0, 1, diff.data());
+    std::vector<NodeForce3> a(4), diff(4);  // rows (x, y, z, 0)
+    a[j].lanes[0] = 1.0;
+    accumulate_consistent_mass_difference(g, weight.data(), a.data(), 0, 1, diff.data());
     for (int i = 0; i < 4; ++i) s(i, j) = -diff[i].lanes[0] / lumped;  // (M_L - M_C) a / m
   }
   Eigen::Vector4d ev = Eigen::SelfAdjointEigenSolver<Eigen::Matrix4d>(s).eigenvalues();
