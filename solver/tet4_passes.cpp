@@ -149,70 +149,62 @@ NodalPressureState nodal_pressure_state(const Tet4Geometry& g,
 
 // ---- central differences -------------------------------------------------------------------
 
+// The node passes below run once over the nodes with the three components in the same iteration
+// (not one loop per component): each array, and each node's force row, is read once. A 3-D step
+// reads ~330 B of node data per node, beyond L2 at 100k tetrahedra (per component, the force rows
+// were streamed three times). The arithmetic per entry is the same.
 __attribute__((target_clones("avx512f", "avx2", "default"))) void predict_nodes(
     double dt, std::size_t begin, std::size_t end, Components3 x, Components3 v, ConstComponents3 a,
     PackedNode3* nodes) {
-  for (int c = 0; c < 3; ++c) {
-    double* __restrict xc = x[c];
-    double* __restrict vc = v[c];
-    const double* __restrict ac = a[c];
-    for (std::size_t i = begin; i < end; ++i) {
-      xc[i] += dt * vc[i] + 0.5 * dt * dt * ac[i];
-      vc[i] += 0.5 * dt * ac[i];
-    }
+  double* __restrict x0 = x[0], * __restrict x1 = x[1], * __restrict x2 = x[2];
+  double* __restrict v0 = v[0], * __restrict v1 = v[1], * __restrict v2 = v[2];
+  const double* __restrict a0 = a[0], * __restrict a1 = a[1], * __restrict a2 = a[2];
+  for (std::size_t i = begin; i < end; ++i) {
+    x0[i] += dt * v0[i] + 0.5 * dt * dt * a0[i];
+    x1[i] += dt * v1[i] + 0.5 * dt * dt * a1[i];
+    x2[i] += dt * v2[i] + 0.5 * dt * dt * a2[i];
+    v0[i] += 0.5 * dt * a0[i];
+    v1[i] += 0.5 * dt * a1[i];
+    v2[i] += 0.5 * dt * a2[i];
+    nodes[i].lanes[0] = x0[i], nodes[i].lanes[1] = x1[i], nodes[i].lanes[2] = x2[i];
   }
-  for (std::size_t i = begin; i < end; ++i)
-    nodes[i].lanes[0] = x[0][i], nodes[i].lanes[1] = x[1][i], nodes[i].lanes[2] = x[2][i];
 }
 
 __attribute__((target_clones("avx512f", "avx2", "default"))) void correct_nodes(
     double dt, std::size_t begin, std::size_t end, const NodeForce3* force, ConstComponents3 fext,
     Flags3 free, const double* mass, Components3 a, Components3 v) {
-  for (int c = 0; c < 3; ++c) {
-    const double* __restrict fc = fext[c];
-    const uint8_t* __restrict free_c = free[c];
-    double* __restrict ac = a[c];
-    double* __restrict vc = v[c];
-    for (std::size_t i = begin; i < end; ++i) {
-      ac[i] = free_c[i] * (force[i].lanes[c] + fc[i]) / mass[i];
-      vc[i] += 0.5 * dt * ac[i];
+  for (std::size_t i = begin; i < end; ++i)
+    for (int c = 0; c < 3; ++c) {
+      a[c][i] = free[c][i] * (force[i].lanes[c] + fext[c][i]) / mass[i];
+      v[c][i] += 0.5 * dt * a[c][i];
     }
-  }
 }
 
 __attribute__((target_clones("avx512f", "avx2", "default"))) void correct_nodes_blended(
     double dt, std::size_t begin, std::size_t end, const NodeForce3* force, ConstComponents3 fext,
     Flags3 free, const double* mass, Components3 a, Components3 fprev, Components3 p,
     NodeForce3* a_rows) {
-  for (int c = 0; c < 3; ++c) {
-    const double* __restrict fc = fext[c];
-    const uint8_t* __restrict free_c = free[c];
-    double* __restrict ac = a[c];
-    double* __restrict fprev_c = fprev[c];
-    double* __restrict pc = p[c];
-    for (std::size_t i = begin; i < end; ++i) {
-      const double f = free_c[i] * (force[i].lanes[c] + fc[i]);
-      ac[i] = f / mass[i];
-      pc[i] += 0.5 * dt * (fprev_c[i] + f);
-      fprev_c[i] = f;
+  for (std::size_t i = begin; i < end; ++i) {
+    ForceLanes3 row{};
+    for (int c = 0; c < 3; ++c) {
+      const double f = free[c][i] * (force[i].lanes[c] + fext[c][i]);
+      a[c][i] = f / mass[i];
+      p[c][i] += 0.5 * dt * (fprev[c][i] + f);
+      fprev[c][i] = f;
+      row[c] = a[c][i];
     }
+    a_rows[i].lanes = row;
   }
-  for (std::size_t i = begin; i < end; ++i)
-    a_rows[i].lanes = ForceLanes3{a[0][i], a[1][i], a[2][i], 0.0};
 }
 
 __attribute__((target_clones("avx512f", "avx2", "default"))) void correct_mass_blend(
     double dt, double alpha, std::size_t begin, std::size_t end, const NodeForce3* difference,
     Flags3 free, const double* mass, Components3 a, Components3 v) {
-  for (int c = 0; c < 3; ++c) {
-    const uint8_t* __restrict free_c = free[c];
-    double* __restrict ac = a[c];
-    double* __restrict vc = v[c];
-    for (std::size_t i = begin; i < end; ++i) {
-      ac[i] -= alpha * free_c[i] * difference[i].lanes[c] / mass[i];
-      vc[i] += 0.5 * dt * ac[i];
+  for (std::size_t i = begin; i < end; ++i)
+    for (int c = 0; c < 3; ++c) {
+      a[c][i] -= alpha * free[c][i] * difference[i].lanes[c] / mass[i];
+      v[c][i] += 0.5 * dt * a[c][i];
     }
-  }
 }
 
 std::vector<double> consistent_mass_weights(const Tet4Geometry& g, double density) {
