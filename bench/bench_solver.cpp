@@ -1,7 +1,8 @@
 // Solver grind time: nanoseconds per element per step (LS-DYNA's "time per zone cycle"), on the
 // default disk (concentric rings, the default element, mass blend and viscosities) of ~16.5k, ~66k
 // and ~264k elements, with 1 and 2 element-loop threads; 16.5k lumped, one thread; and 16.5k with
-// the DOLFINx peer's physics (plain P1, lumped mass, the thesis's viscosity), one thread.
+// the DOLFINx peer's physics (plain P1, lumped mass, the thesis's viscosity), one thread. In 3-D
+// (GrindTime3D*), the same per tetrahedron-step on the cylinder of the peer's 3-D benchmark.
 // Each iteration runs the baseline problem for `kSteps` steps and subtracts a run of
 // `kWarm` steps, so meshing and set-up are excluded; diagnostics are off (history every 1 s).
 // Beside the grind time, each pass of the step as ns per element-step (pass_*_ns: the passes the
@@ -137,6 +138,54 @@ void BM_GrindTimePeerPhysics(benchmark::State& state) {
 BENCHMARK(BM_GrindTimePeerPhysics)
     ->Arg(16500)
     ->ArgName("target_elements")
+    ->UseManualTime()
+    ->Unit(benchmark::kMillisecond)
+    ->Iterations(3);
+
+// 3-D: the spec's cylinder (geometry.cylinder, the default CONCENTRIC_RINGS mesher: the ring disk
+// extruded in layers) of R = 90 um and thickness 20 um, the DOLFINx peer's cyl_100k / cyl_400k
+// (../shared/peer_dolfinx/README.md, "3-D"), with the default physics (average nodal pressure and
+// its stabilisation, mass blend, continuous artificial viscosity, Kelvin-Voigt); counters per
+// tetrahedron-step. peer_physics: plain P1, lumped mass, the thesis's viscosity, no Kelvin-Voigt,
+// as BM_GrindTimePeerPhysics in 2-D.
+const softshock::Problem& cylinder(int elements, bool peer_physics = false) {
+  static std::map<std::pair<int, bool>, softshock::Problem> cache;
+  auto it = cache.find({elements, peer_physics});
+  if (it == cache.end()) {
+    auto spec = softshock::v1::RunSpec();
+    auto* g = spec.mutable_geometry();
+    g->mutable_cylinder()->set_radius(90e-6);
+    g->mutable_cylinder()->set_thickness(20e-6);
+    g->set_target_elements(elements);
+    if (peer_physics) {
+      spec.mutable_element()->set_formulation(softshock::v1::P1);
+      spec.mutable_element()->set_mass_blend(0.0);
+      spec.mutable_viscosity()->set_activation(softshock::v1::COMPRESSION_ONLY);
+      spec.mutable_material()->set_shear_viscosity(0.0);
+    }
+    spec = softshock::normalize_spec(spec);
+    it = cache.emplace(std::pair{elements, peer_physics}, softshock::make_problem(spec)).first;
+  }
+  return it->second;
+}
+void BM_GrindTime3D(benchmark::State& state) {
+  grind_time(state, cylinder(static_cast<int>(state.range(0))), static_cast<int>(state.range(1)));
+}
+BENCHMARK(BM_GrindTime3D)
+    ->Args({100000, 1})
+    ->Args({400000, 1})
+    ->Args({400000, 2})
+    ->ArgNames({"target_elements", "threads"})
+    ->UseManualTime()
+    ->Unit(benchmark::kMillisecond)
+    ->Iterations(3);
+void BM_GrindTime3DPeerPhysics(benchmark::State& state) {
+  grind_time(state, cylinder(static_cast<int>(state.range(0)), true),
+             static_cast<int>(state.range(1)));
+}
+BENCHMARK(BM_GrindTime3DPeerPhysics)
+    ->Args({100000, 1})
+    ->ArgNames({"target_elements", "threads"})
     ->UseManualTime()
     ->Unit(benchmark::kMillisecond)
     ->Iterations(3);

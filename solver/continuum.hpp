@@ -83,12 +83,17 @@ inline double stabilization_bulk_modulus(double beta_kappa, double element_stres
 }
 
 // ---- 3-D kinematics (Tet4) -------------------------------------------------------------
+// Templated on the scalar T: double, or a GCC vector of doubles, one element per lane (the tet
+// element loop, tet4_kernels.cpp); the same expressions either way.
+template <class T>
+using Mat3Of = std::array<T, 9>;
 
 // F = Ds Dm^-1, Ds's columns the current edges e1, e2, e3 (from node 0), Dm^-1 precomputed.
-SOFTSHOCK_ALWAYS_INLINE Mat3 deformation_gradient(double e1x, double e1y, double e1z, double e2x,
-                                                  double e2y, double e2z, double e3x, double e3y,
-                                                  double e3z, const Mat3& dm_inv) {
-  const double* m = dm_inv.data();
+template <class T>
+SOFTSHOCK_ALWAYS_INLINE Mat3Of<T> deformation_gradient(T e1x, T e1y, T e1z, T e2x, T e2y, T e2z,
+                                                       T e3x, T e3y, T e3z,
+                                                       const Mat3Of<T>& dm_inv) {
+  const T* m = dm_inv.data();
   return {e1x * m[0] + e2x * m[3] + e3x * m[6], e1x * m[1] + e2x * m[4] + e3x * m[7],
           e1x * m[2] + e2x * m[5] + e3x * m[8], e1y * m[0] + e2y * m[3] + e3y * m[6],
           e1y * m[1] + e2y * m[4] + e3y * m[7], e1y * m[2] + e2y * m[5] + e3y * m[8],
@@ -97,24 +102,28 @@ SOFTSHOCK_ALWAYS_INLINE Mat3 deformation_gradient(double e1x, double e1y, double
 }
 
 // Cofactor J F^-T: row i, column j is (-1)^(i+j) times the minor of F_ij.
-SOFTSHOCK_ALWAYS_INLINE Mat3 cofactor(const Mat3& f) {
+template <class T>
+SOFTSHOCK_ALWAYS_INLINE Mat3Of<T> cofactor(const Mat3Of<T>& f) {
   return {f[4] * f[8] - f[5] * f[7], f[5] * f[6] - f[3] * f[8], f[3] * f[7] - f[4] * f[6],
           f[2] * f[7] - f[1] * f[8], f[0] * f[8] - f[2] * f[6], f[1] * f[6] - f[0] * f[7],
           f[1] * f[5] - f[2] * f[4], f[2] * f[3] - f[0] * f[5], f[0] * f[4] - f[1] * f[3]};
 }
 
 // det F from F and its cofactor (expansion along the first row).
-SOFTSHOCK_ALWAYS_INLINE double det(const Mat3& f, const Mat3& cof) {
+template <class T>
+SOFTSHOCK_ALWAYS_INLINE T det(const Mat3Of<T>& f, const Mat3Of<T>& cof) {
   return f[0] * cof[0] + f[1] * cof[1] + f[2] * cof[2];
 }
-SOFTSHOCK_ALWAYS_INLINE double det(const Mat3& f) {
+template <class T>
+SOFTSHOCK_ALWAYS_INLINE T det(const Mat3Of<T>& f) {
   return det(f, cofactor(f));
 }
 
 // I1 = tr(F^T F).
-SOFTSHOCK_ALWAYS_INLINE double first_invariant(const Mat3& f) {
-  double sum = 0.0;
-  for (double v : f) sum += v * v;
+template <class T>
+SOFTSHOCK_ALWAYS_INLINE T first_invariant(const Mat3Of<T>& f) {
+  T sum{};
+  for (const T& v : f) sum += v * v;
   return sum;
 }
 
@@ -205,23 +214,24 @@ inline Mat2 viscous_piola(const Mat2& f, const Mat2& f_prev, const Mat2& cof, do
 // The same in 3-D, the full 3x3 deviator: l = ((F - F_prev) / dt) F_prev^-1 with F_prev^-1 =
 // cof(F_prev)^T / J_prev, d = sym(l), sigma_v = 2 nu (d - tr(d)/3 I) + zeta tr(d) I, P_v =
 // sigma_v cof(F). Takes cof_prev = cof(F_prev) and inv = 1 / (J_prev dt).
-SOFTSHOCK_ALWAYS_INLINE Mat3 viscous_piola_inv(const Mat3& f, const Mat3& f_prev,
-                                               const Mat3& cof_prev, const Mat3& cof, double nu,
-                                               double zeta, double inv) {
-  Mat3 df;
+template <class T>
+SOFTSHOCK_ALWAYS_INLINE Mat3Of<T> viscous_piola_inv(const Mat3Of<T>& f, const Mat3Of<T>& f_prev,
+                                                    const Mat3Of<T>& cof_prev, const Mat3Of<T>& cof,
+                                                    T nu, T zeta, T inv) {
+  Mat3Of<T> df;
   for (int k = 0; k < 9; ++k) df[k] = f[k] - f_prev[k];
   // l_ij = sum_k dF_ik (F_prev^-1)_kj = sum_k dF_ik cof_prev_jk / (J_prev dt)
-  Mat3 l;
+  Mat3Of<T> l;
   for (int i = 0; i < 3; ++i)
     for (int j = 0; j < 3; ++j)
       l[3 * i + j] = (df[3 * i] * cof_prev[3 * j] + df[3 * i + 1] * cof_prev[3 * j + 1] +
                       df[3 * i + 2] * cof_prev[3 * j + 2]) *
                      inv;
-  const double trace = l[0] + l[4] + l[8];
-  const double diagonal = zeta * trace - 2.0 * nu * kThird * trace;
-  const double s00 = 2.0 * nu * l[0] + diagonal, s11 = 2.0 * nu * l[4] + diagonal,
-               s22 = 2.0 * nu * l[8] + diagonal;
-  const double s01 = nu * (l[1] + l[3]), s02 = nu * (l[2] + l[6]), s12 = nu * (l[5] + l[7]);
+  const T trace = l[0] + l[4] + l[8];
+  const T diagonal = zeta * trace - 2.0 * nu * kThird * trace;
+  const T s00 = 2.0 * nu * l[0] + diagonal, s11 = 2.0 * nu * l[4] + diagonal,
+          s22 = 2.0 * nu * l[8] + diagonal;
+  const T s01 = nu * (l[1] + l[3]), s02 = nu * (l[2] + l[6]), s12 = nu * (l[5] + l[7]);
   return {s00 * cof[0] + s01 * cof[3] + s02 * cof[6], s00 * cof[1] + s01 * cof[4] + s02 * cof[7],
           s00 * cof[2] + s01 * cof[5] + s02 * cof[8], s01 * cof[0] + s11 * cof[3] + s12 * cof[6],
           s01 * cof[1] + s11 * cof[4] + s12 * cof[7], s01 * cof[2] + s11 * cof[5] + s12 * cof[8],
@@ -311,30 +321,30 @@ inline double aspect_ratio(double e1x, double e1y, double e2x, double e2y) {
 
 // The largest of the squared face-area vectors (times 2) of the tetrahedron with edges e1, e2, e3
 // from node 0: |e1 x e2|^2, |e2 x e3|^2, |e3 x e1|^2, |(e2 - e1) x (e3 - e1)|^2.
-SOFTSHOCK_ALWAYS_INLINE double largest_face_sq(double e1x, double e1y, double e1z, double e2x,
-                                               double e2y, double e2z, double e3x, double e3y,
-                                               double e3z) {
-  auto cross_sq = [](double ax, double ay, double az, double bx, double by, double bz) {
-    const double cx = ay * bz - az * by, cy = az * bx - ax * bz, cz = ax * by - ay * bx;
+template <class T>
+SOFTSHOCK_ALWAYS_INLINE T largest_face_sq(T e1x, T e1y, T e1z, T e2x, T e2y, T e2z, T e3x, T e3y,
+                                          T e3z) {
+  auto cross_sq = [](T ax, T ay, T az, T bx, T by, T bz) {
+    const T cx = ay * bz - az * by, cy = az * bx - ax * bz, cz = ax * by - ay * bx;
     return cx * cx + cy * cy + cz * cz;
   };
-  const double a = cross_sq(e1x, e1y, e1z, e2x, e2y, e2z);
-  const double b = cross_sq(e2x, e2y, e2z, e3x, e3y, e3z);
-  const double c = cross_sq(e3x, e3y, e3z, e1x, e1y, e1z);
-  const double d = cross_sq(e2x - e1x, e2y - e1y, e2z - e1z, e3x - e1x, e3y - e1y, e3z - e1z);
-  const double ab = a > b ? a : b, cd = c > d ? c : d;  // no fmax: keeps the loop vectorised
+  const T a = cross_sq(e1x, e1y, e1z, e2x, e2y, e2z);
+  const T b = cross_sq(e2x, e2y, e2z, e3x, e3y, e3z);
+  const T c = cross_sq(e3x, e3y, e3z, e1x, e1y, e1z);
+  const T d = cross_sq(e2x - e1x, e2y - e1y, e2z - e1z, e3x - e1x, e3y - e1y, e3z - e1z);
+  const T ab = a > b ? a : b, cd = c > d ? c : d;  // no fmax: keeps the loop vectorised
   return ab > cd ? ab : cd;
 }
 // The largest squared edge length of the tetrahedron (six edges).
-SOFTSHOCK_ALWAYS_INLINE double longest_edge_sq(double e1x, double e1y, double e1z, double e2x,
-                                               double e2y, double e2z, double e3x, double e3y,
-                                               double e3z) {
-  auto sq = [](double x, double y, double z) { return x * x + y * y + z * z; };
-  const double a = sq(e1x, e1y, e1z), b = sq(e2x, e2y, e2z), c = sq(e3x, e3y, e3z);
-  const double d = sq(e2x - e1x, e2y - e1y, e2z - e1z), e = sq(e3x - e2x, e3y - e2y, e3z - e2z),
-               f = sq(e1x - e3x, e1y - e3y, e1z - e3z);
-  const double ab = a > b ? a : b, cd = c > d ? c : d, ef = e > f ? e : f;
-  const double abcd = ab > cd ? ab : cd;
+template <class T>
+SOFTSHOCK_ALWAYS_INLINE T longest_edge_sq(T e1x, T e1y, T e1z, T e2x, T e2y, T e2z, T e3x, T e3y,
+                                          T e3z) {
+  auto sq = [](T x, T y, T z) { return x * x + y * y + z * z; };
+  const T a = sq(e1x, e1y, e1z), b = sq(e2x, e2y, e2z), c = sq(e3x, e3y, e3z);
+  const T d = sq(e2x - e1x, e2y - e1y, e2z - e1z), e = sq(e3x - e2x, e3y - e2y, e3z - e2z),
+          f = sq(e1x - e3x, e1y - e3y, e1z - e3z);
+  const T ab = a > b ? a : b, cd = c > d ? c : d, ef = e > f ? e : f;
+  const T abcd = ab > cd ? ab : cd;
   return abcd > ef ? abcd : ef;
 }
 // Smallest altitude squared of a tetrahedron: (3 V / largest face area)^2 = (6 V)^2 / largest

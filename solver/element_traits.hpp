@@ -35,6 +35,9 @@ struct NodalArrays {
   NodalVector<dim> p;      // mass blend: the blended mass's momentum K^-1 v
   std::array<std::vector<uint8_t>, dim> free;
   std::vector<double> mass;  // lumped (row-sum)
+  // 3-D with a mass blend: the lumped accelerations again as one row per node (x, y, z, 0), which
+  // the corrector writes and the blend's element pass gathers (one load per corner, not three).
+  std::vector<NodeForce3> a_rows;
 };
 
 struct Tri3 {
@@ -209,7 +212,8 @@ struct Tet4 {
   static void correct_blended(double dt, std::size_t n0, std::size_t n1, const Force* force,
                               NodalArrays<3>& s) {
     correct_nodes_blended(dt, n0, n1, force, components(std::as_const(s.fext)), flags(s),
-                          s.mass.data(), components(s.a), components(s.fprev), components(s.p));
+                          s.mass.data(), components(s.a), components(s.fprev), components(s.p),
+                          s.a_rows.data());
   }
   static void correct_mass_blend(double dt, double alpha, std::size_t n0, std::size_t n1,
                                  const Force* difference, NodalArrays<3>& s) {
@@ -244,10 +248,12 @@ struct Tet4 {
   }
   static void mass_difference(const Geometry& g, const double* weight, const NodalArrays<3>& s,
                               std::size_t e0, std::size_t e1, Force* difference) {
-    accumulate_consistent_mass_difference(g, weight, components(s.a), e0, e1, difference);
+    accumulate_consistent_mass_difference(g, weight, s.a_rows.data(), e0, e1, difference);
   }
+  // Called once, before the first step: also sizes the acceleration rows.
   static void blended_momentum(const Geometry& g, const double* weight, double alpha,
                                NodalArrays<3>& s) {
+    s.a_rows.assign(s.mass.size(), NodeForce3{});
     softshock::blended_momentum(g, weight, alpha, s.mass.size(), s.mass.data(), flags(s),
                                 components(std::as_const(s.v)), components(s.p));
   }

@@ -2,9 +2,12 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <stdexcept>
+#include <utility>
 
 #include "continuum.hpp"
+#include "tet4_lanes.hpp"
 #include "vector_math.hpp"
 
 namespace softshock {
@@ -41,8 +44,6 @@ Tet4Geometry build_tet4_geometry(const Mesh& mesh) {
 void Tet4State::resize(std::size_t elements) {
   f.assign(tet4_blocked_size(elements), 0.0);
   pv.assign(tet4_blocked_size(elements), 0.0f);
-  viscosity.assign(elements, 0.0f);
-  bulk_viscosity.assign(elements, 0.0f);
   reset_to_reference();
 }
 
@@ -52,8 +53,6 @@ void Tet4State::reset_to_reference() {
     f[i] = component % 4 == 0 ? 1.0 : 0.0;  // the diagonal: components 0, 4, 8
   }
   std::fill(pv.begin(), pv.end(), 0.0f);
-  std::fill(viscosity.begin(), viscosity.end(), 0.0f);
-  std::fill(bulk_viscosity.begin(), bulk_viscosity.end(), 0.0f);
 }
 
 void pack_positions(const double* x, const double* y, const double* z, std::size_t begin,
@@ -70,25 +69,51 @@ void pack_nodal_state(const double* mean_stress, const double* bulk_modulus, std
 
 namespace {
 
-typedef double Lanes8 __attribute__((vector_size(64), may_alias));
-typedef int64_t Mask8 __attribute__((vector_size(64)));
-constexpr std::size_t kLanes = 8;
+using namespace tet4_lanes;
+
 constexpr double kHuge = 1e300;  // above any squared stable step
-inline const Lanes8& lanes_at(const double* p) {
-  return *reinterpret_cast<const Lanes8*>(p);
-}
 
 enum class Volumetric { kElement, kNodal, kBlend };
 
-// The triangle loop's structure (element_kernels.cpp, whose comments say why): per block, the
-// corners' rows gathered into contiguous buffers, a branch-free vectorised loop, the reductions
-// eight lanes at a time, then the scatter of the corner forces in element order.
-template <Volumetric kVolumetric, bool kSample>
-inline __attribute__((always_inline)) void tet4_loop(
-    const Tet4Geometry& g, const PackedNode3* nodes, const KernelParams& p, std::size_t begin,
-    std::size_t end, Tet4State& s, KernelTotals& totals, NodeForce3* node_force, bool& all_valid) {
+// Where a group of W consecutive elements keeps its data: straight in the geometry and state, or,
+// for a group only partly in the range (a thread's range that starts or ends inside one, a test's
+// single element), in a copy whose lanes outside the range repeat an element inside it.
+struct GroupData {
+  const int32_t* corner[4];  // node indices, lane l at corner[a][l]
+  const double *volume0, *altitude0, *shift;
+  const double* dm;  // blocked: component c of lane l at dm[c * kTet4Block + l]
+  double* f;
+  float* pv;
+};
+
+template <std::size_t W>
+struct GroupCopy {
+  int32_t corner[4][W];
+  double volume0[W], altitude0[W], shift[W];
+  alignas(64) double dm[9][kTet4Block], f[9][kTet4Block];
+  alignas(64) float pv[9][kTet4Block];
+};
+
+// The element loop, W tetrahedra at a time (one per lane), in one pass per group: gather the
+// corners' rows, then kinematics, the pointwise law, the viscosities, the stable step, the lagged
+// viscous stress and the nodal forces, each group's state read and written once, and the forces
+// scattered in element order. Written with GCC vector types rather than left to the
+// auto-vectoriser: the auto-vectorised loop (one loop, or three per block of 64 to keep the
+// working set small) spent most of its time storing and reloading intermediates (perf).
+template <std::size_t W, Volumetric kVolumetric, bool kSample>
+SOFTSHOCK_ALWAYS_INLINE void tet4_loop(const Tet4Geometry& g, const PackedNode3* nodes,
+                                       const KernelParams& p, std::size_t begin, std::size_t end,
+                                       Tet4State& s, KernelTotals& totals, NodeForce3* node_force,
+                                       bool& all_valid) {
   namespace cm = continuum;
+  using V = typename Lanes<W>::D;
+  using VF = typename Lanes<W>::F;
+  using Mask = typename Lanes<W>::M;
+  using M3 = cm::Mat3Of<V>;
   constexpr bool kNodal = kVolumetric != Volumetric::kElement;
+  constexpr auto kLaneIndex = std::make_index_sequence<W>{};
+  constexpr std::size_t kBlock = kTet4Block;
+  static_assert(kBlock % W == 0 && 8 % W == 0, "groups tile the blocks and the 8 sum lanes");
   const double n = p.tait_n;
   const bool lagged = p.dt > 0;
   const double artificial_on = p.viscosity && lagged ? 1.0 : 0.0;
@@ -99,215 +124,295 @@ inline __attribute__((always_inline)) void tet4_loop(
   const bool smallest_altitude = p.altitude_length > 0.5;
   const double inv_rho0 = 1.0 / rho0, four_thirds_mu = 4.0 / 3.0 * mu;
   const double shear_share = p.artificial_shear;
-  float *shear_out = s.viscosity.data(), *bulk_out = s.bulk_viscosity.data();
   const double w_element = kNodal ? p.element_weight : 1.0, w_nodal = 1.0 - w_element;
-  const double* shift = p.element_stress_shift;
   const double beta_kappa = p.stabilization_beta_kappa;
 
-  const int32_t *node0 = g.node0.data(), *node1 = g.node1.data(), *node2 = g.node2.data(),
-                *node3 = g.node3.data();
-  const double *volume0 = g.volume0.data(), *altitude0 = g.regular_altitude0.data();
+  // The sums in 8 lanes by element index mod 8, as the loop always summed them (so the totals do
+  // not depend on W); the smallest step per lane with the first element that has it.
+  constexpr std::size_t kSums = 8 / W;
+  V dissipation_sum[kSums] = {}, energy_sum[kSums] = {};
+  V aspect_max = V{} + 0.0, step_min = V{} + kHuge;
+  Mask step_element = Mask{} - 1, valid_lanes = Mask{} - 1;
 
-  // Three loops per block rather than one (loop fission): one loop over the whole element's work
-  // held ~80 values live and spilled most of them (82 ns per element, measured); each loop here
-  // keeps its working set in registers, its intermediates in small buffers in L1.
-  constexpr std::size_t kBlock = kTet4Block;
-  alignas(64) double edge[9][kBlock];  // e1x, e1y, e1z, e2x, ..., e3z
-  alignas(64) double nodal_sm_sum[kBlock], nodal_k_max[kBlock];
-  alignas(64) double step_sq_out[kBlock], dissipation_out[kBlock], j_out[kBlock];
-  alignas(64) double energy_out[kBlock], aspect_out[kBlock];  // kSample only
-  alignas(64) double f_now[9][kBlock], cof_now[9][kBlock];    // F and cof(F) of the block
-  // The elastic stress's two scalars (P_e = s cof + a F), the viscosities, 1 / (J_prev dt).
-  alignas(64) double s_coef[kBlock], a_coef[kBlock], nu_buf[kBlock], zeta_buf[kBlock],
-      inv_v_buf[kBlock];
-  alignas(64) double piola[9][kBlock];      // the total P
-  alignas(64) double force_out[9][kBlock];  // corner forces of nodes 1..3 (x, y, z each)
-  double min_step_sq = totals.min_step_sq;
-  int64_t min_step_element = totals.min_step_element;
-  Lanes8 dissipation_lanes = {}, energy_lanes = {}, aspect_lanes = {};
-  Mask8 valid_lanes = Mask8{} - 1;
-  for (std::size_t block = begin; block < end;) {
-    // The storage block holding element `block`: a range that starts inside one (a thread's, a
-    // test's single element) takes the rest of it first.
-    const std::size_t lane0 = block % kBlock;
-    const std::size_t count = std::min(kBlock - lane0, end - block);
-    const std::size_t blocked = tet4_blocked_index(0, block);
-    const double* __restrict dm = g.dm_inv.data() + blocked;  // dm[c * kBlock + k]
-    double* __restrict fs = s.f.data() + blocked;
-    float* __restrict pvs = s.pv.data() + blocked;
-    for (std::size_t k = 0; k < count; ++k) {
-      const std::size_t e = block + k;
-      const NodeLanes3 na = nodes[node0[e]].lanes, nb = nodes[node1[e]].lanes,
-                       nc = nodes[node2[e]].lanes, nd = nodes[node3[e]].lanes;
-      const NodeLanes3 e1 = nb - na, e2 = nc - na, e3 = nd - na;
-      for (int c = 0; c < 3; ++c)
-        edge[c][k] = e1[c], edge[3 + c][k] = e2[c], edge[6 + c][k] = e3[c];
-      if constexpr (kNodal) {
-        const NodeLanes3 sum = na + nb + nc + nd;
-        const NodeLanes3 max_ab = na > nb ? na : nb, max_cd = nc > nd ? nc : nd;
-        const NodeLanes3 max_all = max_ab > max_cd ? max_ab : max_cd;
-        nodal_sm_sum[k] = sum[3], nodal_k_max[k] = max_all[4];
+  GroupCopy<W> copy;
+  for (std::size_t group = begin / W * W; group < end; group += W) {
+    const std::size_t lane_begin = group < begin ? begin - group : 0;
+    const std::size_t lane_end = std::min(W, end - group);
+    const bool whole = lane_begin == 0 && lane_end == W;
+    const std::size_t blocked = tet4_blocked_index(0, group);
+    GroupData d{{g.node0.data() + group, g.node1.data() + group, g.node2.data() + group,
+                 g.node3.data() + group},
+                g.volume0.data() + group,
+                g.regular_altitude0.data() + group,
+                kNodal ? p.element_stress_shift + group : nullptr,
+                g.dm_inv.data() + blocked,
+                s.f.data() + blocked,
+                s.pv.data() + blocked};
+    if (!whole) {  // lanes outside [lane_begin, lane_end) repeat the element at lane_begin
+      for (std::size_t l = 0; l < W; ++l) {
+        const std::size_t from = l >= lane_begin && l < lane_end ? l : lane_begin;
+        for (int a = 0; a < 4; ++a) copy.corner[a][l] = d.corner[a][from];
+        copy.volume0[l] = d.volume0[from], copy.altitude0[l] = d.altitude0[from];
+        copy.shift[l] = kNodal ? d.shift[from] : 0.0;
+        for (int c = 0; c < 9; ++c) {
+          copy.dm[c][l] = d.dm[c * kBlock + from], copy.f[c][l] = d.f[c * kBlock + from];
+          copy.pv[c][l] = d.pv[c * kBlock + from];
+        }
       }
+      d = GroupData{{copy.corner[0], copy.corner[1], copy.corner[2], copy.corner[3]},
+                    copy.volume0,
+                    copy.altitude0,
+                    copy.shift,
+                    copy.dm[0],
+                    copy.f[0],
+                    copy.pv[0]};
     }
-    // 1. Kinematics, the pointwise law, the viscosities and the stable step.
-#pragma GCC ivdep
-    for (std::size_t k = 0; k < count; ++k) {
-      const std::size_t e = block + k;
-      const double e1x = edge[0][k], e1y = edge[1][k], e1z = edge[2][k];
-      const double e2x = edge[3][k], e2y = edge[4][k], e2z = edge[5][k];
-      const double e3x = edge[6][k], e3y = edge[7][k], e3z = edge[8][k];
-      cm::Mat3 dm_inv;
-      for (int c = 0; c < 9; ++c) dm_inv[c] = dm[c * kBlock + k];
-      const cm::Mat3 f =
-          cm::deformation_gradient(e1x, e1y, e1z, e2x, e2y, e2z, e3x, e3y, e3z, dm_inv);
-      const cm::Mat3 cof = cm::cofactor(f);
-      const double j = cm::det(f, cof);
-      for (int c = 0; c < 9; ++c) f_now[c][k] = f[c], cof_now[c][k] = cof[c];
-      j_out[k] = j;
-      double log_j = 0.0, j_minus_n = 0.0;
-      if constexpr (kVolumetric != Volumetric::kNodal)
-        log_j = ::log(j), j_minus_n = ::exp(-n * log_j);
-      double mean_stress, bulk_modulus;
-      if constexpr (kVolumetric == Volumetric::kNodal) {
-        mean_stress = 0.25 * nodal_sm_sum[k] + shift[e];
-        bulk_modulus = nodal_k_max[k] + cm::stabilization_bulk_modulus(beta_kappa, shift[e]);
-      } else if constexpr (kVolumetric == Volumetric::kBlend) {
-        mean_stress = w_nodal * (0.25 * nodal_sm_sum[k] + shift[e]) +
-                      w_element * cm::tait_mean_stress(kappa, n, j_minus_n);
-        bulk_modulus =
-            w_nodal * (nodal_k_max[k] + cm::stabilization_bulk_modulus(beta_kappa, shift[e])) +
-            w_element * cm::tait_bulk_modulus(kappa, j_minus_n);
+    const Mask in_range = make_lanes<Mask>(
+        [&](std::size_t l) { return l >= lane_begin && l < lane_end ? int64_t{-1} : int64_t{0}; },
+        kLaneIndex);
+
+    // The corners' rows: positions, and the nodal state of the average nodal pressure. With 4
+    // lanes, each row's first four entries in one load and a transpose (x, y, z and the mean
+    // stress of four elements' corner), instead of 16 scalar loads and inserts.
+    V px[4], py[4], pz[4], sm[4], nodal_sm_sum{}, nodal_k_max{};
+    for (int a = 0; a < 4; ++a) {
+      const int32_t* corner = d.corner[a];
+      if constexpr (W == 4) {
+        // One 32-byte load per row (a memcpy into an array of rows became two 16-byte moves and a
+        // 32-byte reload: a failed store forwarding per row, +11 ns per element).
+        const V rows[4] = {row_head(nodes[corner[0]]), row_head(nodes[corner[1]]),
+                           row_head(nodes[corner[2]]), row_head(nodes[corner[3]])};
+        V columns[4];
+        transpose4(rows, columns);
+        px[a] = columns[0], py[a] = columns[1], pz[a] = columns[2], sm[a] = columns[3];
       } else {
-        mean_stress = cm::tait_mean_stress(kappa, n, j_minus_n);
-        bulk_modulus = cm::tait_bulk_modulus(kappa, j_minus_n);
+        auto entry = [&](int c) {
+          return make_lanes<V>([&](std::size_t l) { return nodes[corner[l]].lanes[c]; },
+                               kLaneIndex);
+        };
+        px[a] = entry(0), py[a] = entry(1), pz[a] = entry(2);
+        if constexpr (kNodal) sm[a] = entry(3);
       }
-      const double c_sq = (bulk_modulus + four_thirds_mu) * j * inv_rho0;
+    }
+    if constexpr (kNodal) {
+      V k[4];
+      for (int a = 0; a < 4; ++a) {
+        const int32_t* corner = d.corner[a];
+        k[a] = make_lanes<V>([&](std::size_t l) { return nodes[corner[l]].lanes[4]; }, kLaneIndex);
+      }
+      nodal_sm_sum = sm[0] + sm[1] + sm[2] + sm[3];
+      const V max_ab = k[0] > k[1] ? k[0] : k[1], max_cd = k[2] > k[3] ? k[2] : k[3];
+      nodal_k_max = max_ab > max_cd ? max_ab : max_cd;
+    }
+    const V e1x = px[1] - px[0], e1y = py[1] - py[0], e1z = pz[1] - pz[0];
+    const V e2x = px[2] - px[0], e2y = py[2] - py[0], e2z = pz[2] - pz[0];
+    const V e3x = px[3] - px[0], e3y = py[3] - py[0], e3z = pz[3] - pz[0];
+    const V face_sq = cm::largest_face_sq(e1x, e1y, e1z, e2x, e2y, e2z, e3x, e3y, e3z);
+    V longest_edge_sq{};
+    if constexpr (kSample)
+      longest_edge_sq = cm::longest_edge_sq(e1x, e1y, e1z, e2x, e2y, e2z, e3x, e3y, e3z);
 
-      cm::Mat3 f_prev;
-      for (int c = 0; c < 9; ++c) f_prev[c] = fs[c * kBlock + k];
-      const double j_prev = cm::det(f_prev);  // bit for bit the last evaluation's J
-      const double face_sq = cm::largest_face_sq(e1x, e1y, e1z, e2x, e2y, e2z, e3x, e3y, e3z);
-      // Five quotients, one division (as for triangles): 1/J, 1/face^2 (the smallest altitude),
-      // 1/(J + J_prev), 1/(J_prev dt), 1/(dt c^2).
-      const double den_u = j + j_prev, den_v = j_prev * dt, den_z = dt * c_sq;
-      const double p_a = j * face_sq, p_b = den_u * den_v;
-      const double ab = p_a * p_b, ac = p_a * den_z, bc = p_b * den_z;
-      const double r = 1.0 / (ab * den_z);
-      const double inv_j = r * bc * face_sq, inv_face_sq = r * bc * j;
-      const double inv_u = r * ac * den_v, inv_v = r * ac * den_u, inv_z = r * ab;
+    // Kinematics: F, cof F, J, and the same of the last evaluation's F.
+    M3 dm_inv, f_prev;
+    for (int c = 0; c < 9; ++c)
+      dm_inv[c] = load_lanes<V>(d.dm + c * kBlock), f_prev[c] = load_lanes<V>(d.f + c * kBlock);
+    const M3 f = cm::deformation_gradient(e1x, e1y, e1z, e2x, e2y, e2z, e3x, e3y, e3z, dm_inv);
+    const M3 cof = cm::cofactor(f);
+    const V j = cm::det(f, cof);
+    const M3 cof_prev = cm::cofactor(f_prev);
+    const V j_prev = cm::det(f_prev, cof_prev);  // bit for bit the last evaluation's J
 
-      double j_minus_23;
-      if constexpr (kVolumetric == Volumetric::kNodal)
-        j_minus_23 = ::cbrt(inv_j * inv_j);
-      else
-        j_minus_23 = ::exp(-2.0 / 3.0 * log_j);
-      // P_e = sigma_m cof + mu J^-2/3 (F - I1/3 F^-T) = s cof + a F (continuum's elastic_piola).
-      const double a = mu * j_minus_23;
-      const double i1 = cm::first_invariant(f);
-      a_coef[k] = a;
-      s_coef[k] = mean_stress - a * i1 * (cm::kThird * inv_j);
-      const double six_volume = 6.0 * volume0[e] * j;  // det [e1 e2 e3]
-      if constexpr (kSample) {
-        double w = cm::neo_hookean_energy(mu, i1, j_minus_23);
-        if constexpr (kVolumetric != Volumetric::kNodal)
-          w += w_element * cm::tait_energy(kappa, n, j, j_minus_n);
-        energy_out[k] = volume0[e] * w;
-        aspect_out[k] = cm::aspect_ratio(
-            cm::longest_edge_sq(e1x, e1y, e1z, e2x, e2y, e2z, e3x, e3y, e3z), six_volume, face_sq);
+    // The pointwise law.
+    const V volume0 = load_lanes<V>(d.volume0);
+    V log_j{}, j_minus_n{}, mean_stress, bulk_modulus;
+    if constexpr (kVolumetric != Volumetric::kNodal) {
+      log_j = lanewise<V>([](double x) { return ::log(x); }, j);
+      j_minus_n = lanewise<V>([n](double x) { return ::exp(-n * x); }, log_j);
+    }
+    if constexpr (kNodal) {
+      const V shift = load_lanes<V>(d.shift);
+      const V nodal_mean = 0.25 * nodal_sm_sum + shift;
+      const V nodal_k = nodal_k_max + lanewise<V>(
+                                          [beta_kappa](double x) {
+                                            return cm::stabilization_bulk_modulus(beta_kappa, x);
+                                          },
+                                          shift);
+      if constexpr (kVolumetric == Volumetric::kNodal) {
+        mean_stress = nodal_mean, bulk_modulus = nodal_k;
+      } else {
+        mean_stress =
+            w_nodal * nodal_mean +
+            w_element *
+                lanewise<V>([=](double x) { return cm::tait_mean_stress(kappa, n, x); }, j_minus_n);
+        bulk_modulus =
+            w_nodal * nodal_k +
+            w_element *
+                lanewise<V>([=](double x) { return cm::tait_bulk_modulus(kappa, x); }, j_minus_n);
       }
-      const double h_sq = six_volume * six_volume * inv_face_sq;  // smallest altitude squared
-      // The viscosity's length: the smallest altitude (thesis) or the regular tetrahedron's of
-      // the current volume, altitude0 J^(1/3) = altitude0 J J^(-2/3).
-      const double regular = altitude0[e] * j * j_minus_23;
-      const double hc = std::sqrt((smallest_altitude ? h_sq : regular * regular) * c_sq);
-      const double z = -hc * cm::log_ratio_u((j - j_prev) * inv_u) * inv_z;
-      const double nu_art =
-          artificial_on * cm::artificial_viscosity_hc(hc, rho0 * inv_j, c1, c2, z, ramp_inv);
-      const double nu = eta + shear_share * nu_art;
-      const double zeta = (1.0 - shear_share) * 4.0 / 3.0 * nu_art;
-      const double nu_step = p.eta + shear_share * nu_art;
-      step_sq_out[k] =
-          cm::stable_step_sq_kinematic(h_sq, c_sq, (4.0 / 3.0 * nu_step + zeta) * j * inv_rho0);
-      shear_out[e] = static_cast<float>(nu), bulk_out[e] = static_cast<float>(zeta);
-      nu_buf[k] = nu, zeta_buf[k] = zeta, inv_v_buf[k] = inv_v;
+    } else {
+      mean_stress =
+          lanewise<V>([=](double x) { return cm::tait_mean_stress(kappa, n, x); }, j_minus_n);
+      bulk_modulus =
+          lanewise<V>([=](double x) { return cm::tait_bulk_modulus(kappa, x); }, j_minus_n);
     }
-    // 2. The viscous stress from the lagged rate, the dissipation, the state, the total P.
-#pragma GCC ivdep
-    for (std::size_t k = 0; k < count; ++k) {
-      const std::size_t e = block + k;
-      cm::Mat3 f, cof, f_prev;
-      for (int c = 0; c < 9; ++c)
-        f[c] = f_now[c][k], cof[c] = cof_now[c][k], f_prev[c] = fs[c * kBlock + k];
-      const cm::Mat3 pv = cm::viscous_piola_inv(f, f_prev, cm::cofactor(f_prev), cof, nu_buf[k],
-                                                zeta_buf[k], inv_v_buf[k]);
-      double work = 0.0;
-      for (int c = 0; c < 9; ++c) work += (pv[c] + pvs[c * kBlock + k]) * (f[c] - f_prev[c]);
-      dissipation_out[k] = 0.5 * volume0[e] * work;
-      for (int c = 0; c < 9; ++c) {
-        fs[c * kBlock + k] = f[c], pvs[c * kBlock + k] = static_cast<float>(pv[c]);
-        piola[c][k] = s_coef[k] * cof[c] + a_coef[k] * f[c] + pv[c];
-      }
-    }
-    // 3. Force on node a: -V0 P grad N_a, grad N_a the rows of Dm^-1 (a = 1, 2, 3).
-#pragma GCC ivdep
-    for (std::size_t k = 0; k < count; ++k) {
-      const std::size_t e = block + k;
-      const double v0 = volume0[e];
-      for (int a = 0; a < 3; ++a) {
-        const double g0 = dm[(3 * a) * kBlock + k], g1 = dm[(3 * a + 1) * kBlock + k],
-                     g2 = dm[(3 * a + 2) * kBlock + k];
-        for (int i = 0; i < 3; ++i)
-          force_out[3 * a + i][k] =
-              -v0 * (piola[3 * i][k] * g0 + piola[3 * i + 1][k] * g1 + piola[3 * i + 2][k] * g2);
-      }
-    }
-    // Reductions, as in the triangle loop: the padded tail leaves each one unchanged.
-    const std::size_t padded = (count + kLanes - 1) / kLanes * kLanes;
-    for (std::size_t k = count; k < padded; ++k) {
-      step_sq_out[k] = kHuge, dissipation_out[k] = 0.0, j_out[k] = 1.0;
-      if constexpr (kSample) energy_out[k] = 0.0, aspect_out[k] = 0.0;
-    }
-    Lanes8 block_min = Lanes8{} + kHuge;
-    for (std::size_t k = 0; k < padded; k += kLanes) {
-      const Lanes8 step_sq = lanes_at(step_sq_out + k);
-      block_min = step_sq < block_min ? step_sq : block_min;
-      dissipation_lanes += lanes_at(dissipation_out + k);
-      valid_lanes &= lanes_at(j_out + k) > 0.0;
-      if constexpr (kSample) {
-        energy_lanes += lanes_at(energy_out + k);
-        const Lanes8 aspect = lanes_at(aspect_out + k);
-        aspect_lanes = aspect > aspect_lanes ? aspect : aspect_lanes;
-      }
-    }
-    double smallest = kHuge;
-    for (std::size_t lane = 0; lane < kLanes; ++lane)
-      smallest = block_min[lane] < smallest ? block_min[lane] : smallest;
-    if (smallest < min_step_sq) {
-      std::size_t k = 0;
-      while (step_sq_out[k] != smallest) ++k;
-      min_step_sq = smallest, min_step_element = static_cast<int64_t>(block + k);
-    }
-    for (std::size_t k = 0; k < count; ++k) {
-      const std::size_t e = block + k;
-      const ForceLanes3 f1{force_out[0][k], force_out[1][k], force_out[2][k], 0.0},
-          f2{force_out[3][k], force_out[4][k], force_out[5][k], 0.0},
-          f3{force_out[6][k], force_out[7][k], force_out[8][k], 0.0};
-      node_force[node0[e]].lanes -= f1 + f2 + f3;
-      node_force[node1[e]].lanes += f1;
-      node_force[node2[e]].lanes += f2;
-      node_force[node3[e]].lanes += f3;
-    }
-    block += count;
-  }
-  double dissipation = 0.0, element_energy = 0.0, max_aspect = totals.max_aspect_ratio;
-  for (std::size_t lane = 0; lane < kLanes; ++lane) {
-    dissipation += dissipation_lanes[lane];
-    all_valid &= valid_lanes[lane] != 0;
+    const V c_sq = (bulk_modulus + four_thirds_mu) * j * inv_rho0;
+
+    // Five quotients, one division (as for triangles): 1/J, 1/face^2 (the smallest altitude),
+    // 1/(J + J_prev), 1/(J_prev dt), 1/(dt c^2).
+    const V den_u = j + j_prev, den_v = j_prev * dt, den_z = dt * c_sq;
+    const V p_a = j * face_sq, p_b = den_u * den_v;
+    const V ab = p_a * p_b, ac = p_a * den_z, bc = p_b * den_z;
+    const V r = 1.0 / (ab * den_z);
+    const V inv_j = r * bc * face_sq, inv_face_sq = r * bc * j;
+    const V inv_u = r * ac * den_v, inv_v = r * ac * den_u, inv_z = r * ab;
+
+    V j_minus_23;
+    if constexpr (kVolumetric == Volumetric::kNodal)
+      j_minus_23 = lanewise<V>([](double x) { return ::cbrt(x * x); }, inv_j);
+    else
+      j_minus_23 = lanewise<V>([](double x) { return ::exp(-2.0 / 3.0 * x); }, log_j);
+    // P_e = sigma_m cof + mu J^-2/3 (F - I1/3 F^-T) = s cof + a F (continuum's elastic_piola).
+    const V a_coef = mu * j_minus_23;
+    const V i1 = cm::first_invariant(f);
+    const V s_coef = mean_stress - a_coef * i1 * (cm::kThird * inv_j);
+    const V six_volume = 6.0 * volume0 * j;  // det [e1 e2 e3]
+    V energy{}, aspect{};
     if constexpr (kSample) {
-      element_energy += energy_lanes[lane];
-      max_aspect = aspect_lanes[lane] > max_aspect ? aspect_lanes[lane] : max_aspect;
+      V w = lanewise<V>([mu](double x, double y) { return cm::neo_hookean_energy(mu, x, y); }, i1,
+                        j_minus_23);
+      if constexpr (kVolumetric != Volumetric::kNodal)
+        w += w_element *
+             lanewise<V>([=](double x, double y) { return cm::tait_energy(kappa, n, x, y); }, j,
+                         j_minus_n);
+      energy = volume0 * w;
+      aspect = lanewise<V>([](double x, double y, double z) { return cm::aspect_ratio(x, y, z); },
+                           longest_edge_sq, six_volume, face_sq);
     }
+
+    // The viscosities and the stable step.
+    const V h_sq = six_volume * six_volume * inv_face_sq;  // smallest altitude squared
+    // The viscosity's length: the smallest altitude (thesis) or the regular tetrahedron's of the
+    // current volume, altitude0 J^(1/3) = altitude0 J J^(-2/3).
+    const V regular = load_lanes<V>(d.altitude0) * j * j_minus_23;
+    const V hc = lanewise<V>([](double x) { return std::sqrt(x); },
+                             (smallest_altitude ? h_sq : regular * regular) * c_sq);
+    const V z = -hc *
+                lanewise<V>([](double x) { return cm::log_ratio_u(x); }, (j - j_prev) * inv_u) *
+                inv_z;
+    const V nu_art =
+        artificial_on * lanewise<V>(
+                            [=](double x, double y, double zz) {
+                              return cm::artificial_viscosity_hc(x, y, c1, c2, zz, ramp_inv);
+                            },
+                            hc, rho0 * inv_j, z);
+    const V nu = eta + shear_share * nu_art;
+    const V zeta = (1.0 - shear_share) * 4.0 / 3.0 * nu_art;
+
+    // The viscous stress from the lagged rate, the dissipation (trapezoidal in P_v), the state.
+    const M3 pv = cm::viscous_piola_inv(f, f_prev, cof_prev, cof, nu, zeta, inv_v);
+    V work{};
+    for (int c = 0; c < 9; ++c)
+      work += (pv[c] + load_float_lanes<V, VF>(d.pv + c * kBlock)) * (f[c] - f_prev[c]);
+    const V dissipation = 0.5 * volume0 * work;
+    for (int c = 0; c < 9; ++c) {
+      store_lanes(d.f + c * kBlock, f[c]);
+      store_float_lanes<V, VF>(d.pv + c * kBlock, pv[c]);
+    }
+    // Force on node a: -V0 P grad N_a, grad N_a the rows of Dm^-1 (a = 1, 2, 3), P the total.
+    M3 piola;
+    for (int c = 0; c < 9; ++c) piola[c] = s_coef * cof[c] + a_coef * f[c] + pv[c];
+    V force[3][3];  // [a - 1][component]
+    for (int a = 0; a < 3; ++a) {
+      // Dm^-1 read again rather than kept in registers through the whole group.
+      const V g0 = dm_inv[3 * a], g1 = dm_inv[3 * a + 1], g2 = dm_inv[3 * a + 2];
+      for (int i = 0; i < 3; ++i)
+        force[a][i] =
+            -volume0 * (piola[3 * i] * g0 + piola[3 * i + 1] * g1 + piola[3 * i + 2] * g2);
+    }
+
+    // The sums, the lanes outside the range left out.
+    const std::size_t sum = group / W % kSums;
+    dissipation_sum[sum] += in_range ? dissipation : 0.0;
+    valid_lanes &= (in_range ? j : 1.0) > 0.0;
+    if constexpr (kSample) {
+      energy_sum[sum] += in_range ? energy : 0.0;
+      const V aspect_in_range = in_range ? aspect : 0.0;
+      aspect_max = aspect_in_range > aspect_max ? aspect_in_range : aspect_max;
+    }
+
+    if (!whole) {  // the state of the lanes in the range back where it belongs
+      const std::size_t storage = tet4_blocked_index(0, group);
+      for (std::size_t l = lane_begin; l < lane_end; ++l)
+        for (int c = 0; c < 9; ++c) {
+          s.f[storage + c * kBlock + l] = copy.f[c][l];
+          s.pv[storage + c * kBlock + l] = copy.pv[c][l];
+        }
+    }
+    // The forces onto the nodes, element by element in index order.
+    const V total_x = force[0][0] + force[1][0] + force[2][0],
+            total_y = force[0][1] + force[1][1] + force[2][1],
+            total_z = force[0][2] + force[1][2] + force[2][2];
+    if constexpr (W == 4) {  // the four elements' forces as rows (x, y, z, 0) by a transpose
+      const V zero{};
+      V rows[4][4];  // [corner][lane]
+      transpose4({total_x, total_y, total_z, zero}, rows[0]);
+      for (int a = 0; a < 3; ++a)
+        transpose4({force[a][0], force[a][1], force[a][2], zero}, rows[a + 1]);
+      for (std::size_t l = lane_begin; l < lane_end; ++l) {
+        const std::size_t e = group + l;
+        node_force[g.node0[e]].lanes -= rows[0][l];
+        node_force[g.node1[e]].lanes += rows[1][l];
+        node_force[g.node2[e]].lanes += rows[2][l];
+        node_force[g.node3[e]].lanes += rows[3][l];
+      }
+    } else {
+      for (std::size_t l = lane_begin; l < lane_end; ++l) {
+        const std::size_t e = group + l;
+        node_force[g.node0[e]].lanes -= ForceLanes3{total_x[l], total_y[l], total_z[l], 0.0};
+        node_force[g.node1[e]].lanes +=
+            ForceLanes3{force[0][0][l], force[0][1][l], force[0][2][l], 0.0};
+        node_force[g.node2[e]].lanes +=
+            ForceLanes3{force[1][0][l], force[1][1][l], force[1][2][l], 0.0};
+        node_force[g.node3[e]].lanes +=
+            ForceLanes3{force[2][0][l], force[2][1][l], force[2][2][l], 0.0};
+      }
+    }
+
+    // Last in the group, the stable step: nothing else waits for its root and quotient, so the
+    // core goes on with the next group while they finish (computed before the forces, they held
+    // up everything after them in the window: +3.5 ns an element).
+    const V nu_step = p.eta + shear_share * nu_art;
+    const V step_sq = lanewise<V>(
+        [](double x, double y, double zz) { return cm::stable_step_sq_kinematic(x, y, zz); }, h_sq,
+        c_sq, (4.0 / 3.0 * nu_step + zeta) * j * inv_rho0);
+    const V step_in_range = in_range ? step_sq : kHuge;
+    const Mask smaller = step_in_range < step_min;
+    step_min = smaller ? step_in_range : step_min;
+    step_element =
+        smaller ? make_lanes<Mask>([&](std::size_t l) { return static_cast<int64_t>(group + l); },
+                                   kLaneIndex)
+                : step_element;
   }
+
+  double dissipation = 0.0, element_energy = 0.0, max_aspect = totals.max_aspect_ratio;
+  for (std::size_t k = 0; k < kSums; ++k)
+    for (std::size_t l = 0; l < W; ++l) {
+      dissipation += dissipation_sum[k][l];
+      if constexpr (kSample) element_energy += energy_sum[k][l];
+    }
+  // The smallest step of all lanes, the lowest element index on a tie: the first element that has
+  // it.
+  double min_step_sq = kHuge;
+  int64_t min_step_element = -1;
+  for (std::size_t l = 0; l < W; ++l) {
+    all_valid &= valid_lanes[l] != 0;
+    if constexpr (kSample) max_aspect = aspect_max[l] > max_aspect ? aspect_max[l] : max_aspect;
+    if (step_min[l] < min_step_sq ||
+        (step_min[l] == min_step_sq && step_min[l] < kHuge && step_element[l] < min_step_element))
+      min_step_sq = step_min[l], min_step_element = step_element[l];
+  }
+  if (!(min_step_sq < totals.min_step_sq))
+    min_step_sq = totals.min_step_sq, min_step_element = totals.min_step_element;
   totals.min_step_sq = min_step_sq;
   totals.min_step_element = min_step_element;
   totals.dissipation += dissipation;
@@ -315,12 +420,12 @@ inline __attribute__((always_inline)) void tet4_loop(
   totals.max_aspect_ratio = max_aspect;
 }
 
-template <Volumetric kVolumetric, typename... Args>
-inline __attribute__((always_inline)) void tet4_loop_sampled(bool sample, Args&... args) {
+template <std::size_t W, Volumetric kVolumetric, typename... Args>
+SOFTSHOCK_ALWAYS_INLINE void tet4_loop_sampled(bool sample, Args&... args) {
   if (sample)
-    tet4_loop<kVolumetric, true>(args...);
+    tet4_loop<W, kVolumetric, true>(args...);
   else
-    tet4_loop<kVolumetric, false>(args...);
+    tet4_loop<W, kVolumetric, false>(args...);
 }
 
 }  // namespace
@@ -331,13 +436,13 @@ inline __attribute__((always_inline)) void tet4_loop_sampled(bool sample, Args&.
 namespace {
 
 #define SOFTSHOCK_TET4_ARGS g, nodes, p, begin, end, s, totals, node_force, valid
-#define SOFTSHOCK_TET4_VARIANTS(args)                        \
-  if (!p.nodal_pressure)                                     \
-    tet4_loop_sampled<Volumetric::kElement>(p.sample, args); \
-  else if (p.element_weight == 0.0)                          \
-    tet4_loop_sampled<Volumetric::kNodal>(p.sample, args);   \
-  else                                                       \
-    tet4_loop_sampled<Volumetric::kBlend>(p.sample, args);
+#define SOFTSHOCK_TET4_VARIANTS(W, args)                        \
+  if (!p.nodal_pressure)                                        \
+    tet4_loop_sampled<W, Volumetric::kElement>(p.sample, args); \
+  else if (p.element_weight == 0.0)                             \
+    tet4_loop_sampled<W, Volumetric::kNodal>(p.sample, args);   \
+  else                                                          \
+    tet4_loop_sampled<W, Volumetric::kBlend>(p.sample, args);
 
 using LoopFn = void (*)(const Tet4Geometry&, const PackedNode3*, const KernelParams&, std::size_t,
                         std::size_t, Tet4State&, KernelTotals&, NodeForce3*, bool&);
@@ -345,19 +450,19 @@ using LoopFn = void (*)(const Tet4Geometry&, const PackedNode3*, const KernelPar
 __attribute__((target("avx512f,avx512dq,avx512vl,avx2,fma"))) void loops_avx512(
     const Tet4Geometry& g, const PackedNode3* nodes, const KernelParams& p, std::size_t begin,
     std::size_t end, Tet4State& s, KernelTotals& totals, NodeForce3* node_force, bool& valid) {
-  SOFTSHOCK_TET4_VARIANTS(SOFTSHOCK_TET4_ARGS)
+  SOFTSHOCK_TET4_VARIANTS(8, SOFTSHOCK_TET4_ARGS)
 }
 __attribute__((target("avx2,fma"))) void loops_avx2(const Tet4Geometry& g, const PackedNode3* nodes,
                                                     const KernelParams& p, std::size_t begin,
                                                     std::size_t end, Tet4State& s,
                                                     KernelTotals& totals, NodeForce3* node_force,
                                                     bool& valid) {
-  SOFTSHOCK_TET4_VARIANTS(SOFTSHOCK_TET4_ARGS)
+  SOFTSHOCK_TET4_VARIANTS(4, SOFTSHOCK_TET4_ARGS)
 }
 void loops_baseline(const Tet4Geometry& g, const PackedNode3* nodes, const KernelParams& p,
                     std::size_t begin, std::size_t end, Tet4State& s, KernelTotals& totals,
                     NodeForce3* node_force,
-                    bool& valid){SOFTSHOCK_TET4_VARIANTS(SOFTSHOCK_TET4_ARGS)}
+                    bool& valid){SOFTSHOCK_TET4_VARIANTS(2, SOFTSHOCK_TET4_ARGS)}
 
 LoopFn pick_loops() {
   __builtin_cpu_init();

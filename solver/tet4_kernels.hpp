@@ -16,8 +16,11 @@ namespace softshock {
 
 // Per-element 3x3 quantities are stored in blocks of kTet4Block elements, component by component
 // ([block][component][lane]): the element loop then reaches all nine components of a block from
-// one pointer (separate arrays per component needed 27 pointers live and spilled them).
-inline constexpr std::size_t kTet4Block = 64;
+// one pointer (separate arrays per component needed 27 pointers live and spilled them), and, with
+// 8 lanes, one block's component fills one cache line of doubles, so that each array is read as
+// one sequential stream (64 lanes made 9 interleaved streams of each array, 27 in all, more than
+// the hardware prefetchers follow: the loop waited on memory at 100k elements).
+inline constexpr std::size_t kTet4Block = 8;
 inline std::size_t tet4_blocked_index(int component, std::size_t e) {
   return (e / kTet4Block) * 9 * kTet4Block + static_cast<std::size_t>(component) * kTet4Block +
          e % kTet4Block;
@@ -49,7 +52,6 @@ Tet4Geometry build_tet4_geometry(const Mesh& mesh);
 struct Tet4State {
   std::vector<double> f;  // F at the last evaluation (lags the viscosity)
   std::vector<float> pv;  // viscous P at the last evaluation (dissipation, diagnostics only)
-  std::vector<float> viscosity, bulk_viscosity;  // its shear nu and bulk zeta, Pa s
   void resize(std::size_t elements);
   void reset_to_reference();  // F = I, P_v = 0
   double f_at(int component, std::size_t e) const { return f[tet4_blocked_index(component, e)]; }

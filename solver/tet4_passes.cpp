@@ -149,67 +149,62 @@ NodalPressureState nodal_pressure_state(const Tet4Geometry& g,
 
 // ---- central differences -------------------------------------------------------------------
 
+// The node passes below run once over the nodes with the three components in the same iteration
+// (not one loop per component): each array, and each node's force row, is read once. A 3-D step
+// reads ~330 B of node data per node, beyond L2 at 100k tetrahedra (per component, the force rows
+// were streamed three times). The arithmetic per entry is the same.
 __attribute__((target_clones("avx512f", "avx2", "default"))) void predict_nodes(
     double dt, std::size_t begin, std::size_t end, Components3 x, Components3 v, ConstComponents3 a,
     PackedNode3* nodes) {
-  for (int c = 0; c < 3; ++c) {
-    double* __restrict xc = x[c];
-    double* __restrict vc = v[c];
-    const double* __restrict ac = a[c];
-    for (std::size_t i = begin; i < end; ++i) {
-      xc[i] += dt * vc[i] + 0.5 * dt * dt * ac[i];
-      vc[i] += 0.5 * dt * ac[i];
-    }
+  double* __restrict x0 = x[0], * __restrict x1 = x[1], * __restrict x2 = x[2];
+  double* __restrict v0 = v[0], * __restrict v1 = v[1], * __restrict v2 = v[2];
+  const double* __restrict a0 = a[0], * __restrict a1 = a[1], * __restrict a2 = a[2];
+  for (std::size_t i = begin; i < end; ++i) {
+    x0[i] += dt * v0[i] + 0.5 * dt * dt * a0[i];
+    x1[i] += dt * v1[i] + 0.5 * dt * dt * a1[i];
+    x2[i] += dt * v2[i] + 0.5 * dt * dt * a2[i];
+    v0[i] += 0.5 * dt * a0[i];
+    v1[i] += 0.5 * dt * a1[i];
+    v2[i] += 0.5 * dt * a2[i];
+    nodes[i].lanes[0] = x0[i], nodes[i].lanes[1] = x1[i], nodes[i].lanes[2] = x2[i];
   }
-  for (std::size_t i = begin; i < end; ++i)
-    nodes[i].lanes[0] = x[0][i], nodes[i].lanes[1] = x[1][i], nodes[i].lanes[2] = x[2][i];
 }
 
 __attribute__((target_clones("avx512f", "avx2", "default"))) void correct_nodes(
     double dt, std::size_t begin, std::size_t end, const NodeForce3* force, ConstComponents3 fext,
     Flags3 free, const double* mass, Components3 a, Components3 v) {
-  for (int c = 0; c < 3; ++c) {
-    const double* __restrict fc = fext[c];
-    const uint8_t* __restrict free_c = free[c];
-    double* __restrict ac = a[c];
-    double* __restrict vc = v[c];
-    for (std::size_t i = begin; i < end; ++i) {
-      ac[i] = free_c[i] * (force[i].lanes[c] + fc[i]) / mass[i];
-      vc[i] += 0.5 * dt * ac[i];
+  for (std::size_t i = begin; i < end; ++i)
+    for (int c = 0; c < 3; ++c) {
+      a[c][i] = free[c][i] * (force[i].lanes[c] + fext[c][i]) / mass[i];
+      v[c][i] += 0.5 * dt * a[c][i];
     }
-  }
 }
 
 __attribute__((target_clones("avx512f", "avx2", "default"))) void correct_nodes_blended(
     double dt, std::size_t begin, std::size_t end, const NodeForce3* force, ConstComponents3 fext,
-    Flags3 free, const double* mass, Components3 a, Components3 fprev, Components3 p) {
-  for (int c = 0; c < 3; ++c) {
-    const double* __restrict fc = fext[c];
-    const uint8_t* __restrict free_c = free[c];
-    double* __restrict ac = a[c];
-    double* __restrict fprev_c = fprev[c];
-    double* __restrict pc = p[c];
-    for (std::size_t i = begin; i < end; ++i) {
-      const double f = free_c[i] * (force[i].lanes[c] + fc[i]);
-      ac[i] = f / mass[i];
-      pc[i] += 0.5 * dt * (fprev_c[i] + f);
-      fprev_c[i] = f;
+    Flags3 free, const double* mass, Components3 a, Components3 fprev, Components3 p,
+    NodeForce3* a_rows) {
+  for (std::size_t i = begin; i < end; ++i) {
+    ForceLanes3 row{};
+    for (int c = 0; c < 3; ++c) {
+      const double f = free[c][i] * (force[i].lanes[c] + fext[c][i]);
+      a[c][i] = f / mass[i];
+      p[c][i] += 0.5 * dt * (fprev[c][i] + f);
+      fprev[c][i] = f;
+      row[c] = a[c][i];
     }
+    a_rows[i].lanes = row;
   }
 }
 
 __attribute__((target_clones("avx512f", "avx2", "default"))) void correct_mass_blend(
     double dt, double alpha, std::size_t begin, std::size_t end, const NodeForce3* difference,
     Flags3 free, const double* mass, Components3 a, Components3 v) {
-  for (int c = 0; c < 3; ++c) {
-    const uint8_t* __restrict free_c = free[c];
-    double* __restrict ac = a[c];
-    double* __restrict vc = v[c];
-    for (std::size_t i = begin; i < end; ++i) {
-      ac[i] -= alpha * free_c[i] * difference[i].lanes[c] / mass[i];
-      vc[i] += 0.5 * dt * ac[i];
+  for (std::size_t i = begin; i < end; ++i)
+    for (int c = 0; c < 3; ++c) {
+      a[c][i] -= alpha * free[c][i] * difference[i].lanes[c] / mass[i];
+      v[c][i] += 0.5 * dt * a[c][i];
     }
-  }
 }
 
 std::vector<double> consistent_mass_weights(const Tet4Geometry& g, double density) {
@@ -218,35 +213,28 @@ std::vector<double> consistent_mass_weights(const Tet4Geometry& g, double densit
   return weight;
 }
 
-// Blocked like the other element passes: the corners' accelerations gathered into contiguous
-// buffers, the differences computed vectorised, then added to the nodes in element order (a
-// scalar loop over 4-lane rows cost 34 ns per element at 100k, measured).
+// Element by element on the rows: the three components of a corner in one 4-lane vector (the
+// fourth lane stays 0), the sums and differences as the three component-wise loops computed them.
+// Gathering three separate arrays into blocked buffers first cost 17 ns per element in cache and
+// 20-24 at 100k; a row per corner needs one load per corner instead of three (measured below, in
+// docs/performance.md "3-D").
 __attribute__((target_clones("avx512f", "avx2", "default"))) void
 accumulate_consistent_mass_difference(const Tet4Geometry& g, const double* weight,
-                                      ConstComponents3 a, std::size_t begin, std::size_t end,
+                                      const NodeForce3* a, std::size_t begin, std::size_t end,
                                       NodeForce3* difference) {
-  const int32_t* corner_of[4] = {g.node0.data(), g.node1.data(), g.node2.data(), g.node3.data()};
-  alignas(64) double corner[4][3][kBlock], out[4][3][kBlock];
-  for (std::size_t block = begin; block < end; block += kBlock) {
-    const std::size_t count = std::min(kBlock, end - block);
-    for (int v = 0; v < 4; ++v)
-      for (std::size_t k = 0; k < count; ++k) {
-        const int32_t i = corner_of[v][block + k];
-        corner[v][0][k] = a[0][i], corner[v][1][k] = a[1][i], corner[v][2][k] = a[2][i];
-      }
-#pragma GCC ivdep
-    for (std::size_t k = 0; k < count; ++k) {
-      const double w = weight[block + k];
-      for (int c = 0; c < 3; ++c) {
-        const double sum = corner[0][c][k] + corner[1][c][k] + corner[2][c][k] + corner[3][c][k];
-        // sum of the other three minus 3 a_i = sum - 4 a_i
-        for (int v = 0; v < 4; ++v) out[v][c][k] = w * (sum - 4.0 * corner[v][c][k]);
-      }
-    }
-    for (std::size_t k = 0; k < count; ++k)
-      for (int v = 0; v < 4; ++v)
-        difference[corner_of[v][block + k]].lanes +=
-            ForceLanes3{out[v][0][k], out[v][1][k], out[v][2][k], 0.0};
+  const int32_t *n0 = g.node0.data(), *n1 = g.node1.data(), *n2 = g.node2.data(),
+                *n3 = g.node3.data();
+  for (std::size_t e = begin; e < end; ++e) {
+    const int32_t i[4] = {n0[e], n1[e], n2[e], n3[e]};
+    const ForceLanes3 a0 = a[i[0]].lanes, a1 = a[i[1]].lanes, a2 = a[i[2]].lanes,
+                      a3 = a[i[3]].lanes;
+    const ForceLanes3 sum = a0 + a1 + a2 + a3;
+    const double w = weight[e];
+    // sum of the other three minus 3 a_i = sum - 4 a_i
+    difference[i[0]].lanes += w * (sum - 4.0 * a0);
+    difference[i[1]].lanes += w * (sum - 4.0 * a1);
+    difference[i[2]].lanes += w * (sum - 4.0 * a2);
+    difference[i[3]].lanes += w * (sum - 4.0 * a3);
   }
 }
 
@@ -255,7 +243,7 @@ void blended_momentum(const Tet4Geometry& geometry, const double* weight, double
                       Components3 p) {
   std::array<std::vector<double>, 3> y;
   for (int c = 0; c < 3; ++c) y[c].assign(v[c], v[c] + nodes);
-  std::vector<NodeForce3> difference(nodes);
+  std::vector<NodeForce3> difference(nodes), y_rows(nodes);
   double size = 0;
   for (std::size_t i = 0; i < nodes; ++i)
     for (int c = 0; c < 3; ++c) {
@@ -264,8 +252,10 @@ void blended_momentum(const Tet4Geometry& geometry, const double* weight, double
     }
   for (int k = 1; k <= 400 && size > 0; ++k) {  // ratio <= 4/5: 400 terms reach any round-off
     std::fill(difference.begin(), difference.end(), NodeForce3{});
-    accumulate_consistent_mass_difference(geometry, weight, {y[0].data(), y[1].data(), y[2].data()},
-                                          0, geometry.size(), difference.data());
+    for (std::size_t i = 0; i < nodes; ++i)
+      y_rows[i].lanes = ForceLanes3{y[0][i], y[1][i], y[2][i], 0.0};
+    accumulate_consistent_mass_difference(geometry, weight, y_rows.data(), 0, geometry.size(),
+                                          difference.data());
     double term = 0;
     for (std::size_t i = 0; i < nodes; ++i)
       for (int c = 0; c < 3; ++c) {

@@ -57,20 +57,21 @@ void predict_nodes(double dt, std::size_t begin, std::size_t end, Components3 x,
 void correct_nodes(double dt, std::size_t begin, std::size_t end, const NodeForce3* force,
                    ConstComponents3 fext, Flags3 free, const double* mass, Components3 a,
                    Components3 v);
-// The mass blend's corrector, first half: a_L = free (f + f_ext) / m; p += dt/2 (f_prev + f);
-// f_prev = f.
+// The mass blend's corrector, first half: a_L = free (f + f_ext) / m, also as rows (x, y, z, 0)
+// for the blend's element pass; p += dt/2 (f_prev + f); f_prev = f.
 void correct_nodes_blended(double dt, std::size_t begin, std::size_t end, const NodeForce3* force,
                            ConstComponents3 fext, Flags3 free, const double* mass, Components3 a,
-                           Components3 fprev, Components3 p);
+                           Components3 fprev, Components3 p, NodeForce3* a_rows);
 // a -= alpha free (M_C - M_L) a_L / m; v += dt/2 a.
 void correct_mass_blend(double dt, double alpha, std::size_t begin, std::size_t end,
                         const NodeForce3* difference, Flags3 free, const double* mass,
                         Components3 a, Components3 v);
 // Each element's rho V_e / 20.
 std::vector<double> consistent_mass_weights(const Tet4Geometry& geometry, double density);
-// (M_C - M_L) a: node i of element e gets rho V_e / 20 (sum of the other three a - 3 a_i).
+// (M_C - M_L) a: node i of element e gets rho V_e / 20 (sum of the other three a - 3 a_i); a as
+// rows (x, y, z, 0).
 void accumulate_consistent_mass_difference(const Tet4Geometry& geometry, const double* weight,
-                                           ConstComponents3 a, std::size_t begin, std::size_t end,
+                                           const NodeForce3* a, std::size_t begin, std::size_t end,
                                            NodeForce3* difference);
 // p = K^-1 v for an initial velocity field (integrator.hpp's blended_momentum; ratio 4 alpha / 5).
 void blended_momentum(const Tet4Geometry& geometry, const double* weight, double alpha,

@@ -298,12 +298,9 @@ TEST(Tet4, ConsistentMassBlendOperator) {
   const double lumped = 1000.0 * g.volume0[0] / 4.0;
   Eigen::Matrix4d s;
   for (int j = 0; j < 4; ++j) {
-    NodalVector<3> a;
-    for (auto& c : a) c.assign(4, 0.0);
-    a[0][j] = 1.0;
-    std::vector<NodeForce3> diff(4);
-    accumulate_consistent_mass_difference(g, weight.data(), {a[0].data(), a[1].data(), a[2].data()},
-                                          0, 1, diff.data());
+    std::vector<NodeForce3> a(4), diff(4);  // rows (x, y, z, 0)
+    a[j].lanes[0] = 1.0;
+    accumulate_consistent_mass_difference(g, weight.data(), a.data(), 0, 1, diff.data());
     for (int i = 0; i < 4; ++i) s(i, j) = -diff[i].lanes[0] / lumped;  // (M_L - M_C) a / m
   }
   Eigen::Vector4d ev = Eigen::SelfAdjointEigenSolver<Eigen::Matrix4d>(s).eigenvalues();
@@ -335,6 +332,59 @@ TEST(Tet4, FollowerPressureOnFacesFollowsTheCurrentArea) {
   // +z (F's third column is (0, 0, 1.2)): force -p A in z, pushing down. Edge nodes also carry
   // the side faces' share, which has no z component (their normals have none).
   EXPECT_NEAR(on_top, -p * 1.1 * 0.9 * 9e-12, 1e-9 * p * 9e-12);
+}
+
+// The element loop runs W tetrahedra at a time; a range that starts or ends inside such a group
+// (a thread's share, a single element) must give what one call over all the elements gives: the
+// same forces on every node (added in element order either way), the same state, the same
+// smallest step and the element that sets it. With the lagged viscosity on (dt > 0) and the
+// state of an earlier evaluation, so that every term runs.
+TEST(Tet4, RangesSplitInsideAGroupGiveTheWholeRangesResult) {
+  Tet4Fixture fx(3, 3e-6);  // 162 tetrahedra
+  fx.p.mu = 1e8, fx.p.eta = 0.25, fx.p.dt = 1e-12;
+  fx.p.nodal_pressure = false;  // no nodal state needed in the rows
+  const std::size_t nn = fx.nodes(), ne = fx.g.size();
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<double> jitter(-5e-8, 5e-8);
+  auto rows_at = [&](double scale) {
+    auto x = fx.affine({1.02, 0.05, 0, -0.03, 0.98, 0.01, 0.02, 0, 1.01});
+    for (auto& c : x)
+      for (double& v : c) v += scale * jitter(rng);
+    std::vector<PackedNode3> rows(nn);
+    pack_positions(x[0].data(), x[1].data(), x[2].data(), 0, nn, rows.data());
+    return rows;
+  };
+  const auto before = rows_at(1.0), now = rows_at(1.0);
+  Tet4State start;
+  start.resize(ne);
+  {
+    KernelTotals unused;
+    std::vector<NodeForce3> force(nn);
+    compute_tet4_forces(fx.g, before.data(), fx.p, 0, ne, start, unused, force.data());
+  }
+  auto evaluate = [&](const std::vector<std::size_t>& cuts, Tet4State& state, KernelTotals& t) {
+    std::vector<NodeForce3> force(nn);
+    for (std::size_t k = 0; k + 1 < cuts.size(); ++k)
+      compute_tet4_forces(fx.g, now.data(), fx.p, cuts[k], cuts[k + 1], state, t, force.data());
+    return force;
+  };
+  Tet4State whole_state = start;
+  KernelTotals whole;
+  const auto whole_force = evaluate({0, ne}, whole_state, whole);
+  ASSERT_GE(whole.min_step_element, 0);
+  for (const std::vector<std::size_t>& cuts : std::vector<std::vector<std::size_t>>{
+           {0, 1, ne}, {0, 3, 77, ne}, {0, 13, 14, 15, ne - 5, ne}, {0, 9, 64, 100, 141, ne}}) {
+    Tet4State state = start;
+    KernelTotals split;
+    const auto force = evaluate(cuts, state, split);
+    for (std::size_t i = 0; i < nn; ++i)
+      for (int c = 0; c < 3; ++c) ASSERT_EQ(force[i].lanes[c], whole_force[i].lanes[c]) << i;
+    EXPECT_EQ(state.f, whole_state.f);
+    EXPECT_EQ(state.pv, whole_state.pv);
+    EXPECT_EQ(split.min_step_sq, whole.min_step_sq);
+    EXPECT_EQ(split.min_step_element, whole.min_step_element);
+    EXPECT_NEAR(split.dissipation, whole.dissipation, 1e-14 * std::fabs(whole.dissipation));
+  }
 }
 
 // Whole runs (ExplicitStep + run loop) without viscosity conserve energy to the integrator's
