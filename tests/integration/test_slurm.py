@@ -148,6 +148,30 @@ class SlurmTest(DaemonTestCase):
         self.assertEqual(final.spec.geometry.mesh_file, f"uploads/{mesh.id}.msh")
         self.assertEqual(c.summary(job.id)["elements"], mesh.elements)
 
+    def test_cylinder_runs_on_the_cluster_as_locally(self):
+        # A 3-D job through sbatch: the same solver, so the same answer as the local executor.
+        spec = {"geometry": {"cylinder": {"radius": 9e-5, "thickness": 6e-6},
+                             "targetElements": 2000},
+                "run": {"endTime": 1e-8, "outputInterval": 5e-9}}
+        c = self.client()
+        final = c.wait(c.submit(spec).id, timeout=120)
+        self.assertEqual(state_name(final), "SUCCEEDED", final.error)
+        cluster = c.summary(final.id)
+        self.assertGreater(cluster["elements"], 1500)
+        local = Daemon(os.path.join(self.tmp, "local3d"), os.path.join(self.tmp, "local3d.log"),
+                       workers=1)
+        local.start()
+        self.addCleanup(local.stop)
+        from softshock_client import Client
+        with Client(local.address) as lc:
+            lfinal = lc.wait(lc.submit(spec).id, timeout=120)
+            self.assertEqual(state_name(lfinal), "SUCCEEDED", lfinal.error)
+            here = lc.summary(lfinal.id)
+        for name in ("elements", "steps", "dominant_mode_end"):
+            self.assertEqual(cluster[name], here[name], name)
+        for name in ("energy_injected", "energy_after_pulse", "max_abar"):
+            np.testing.assert_allclose(cluster[name], here[name], rtol=1e-8, err_msg=name)
+
     def test_kill9_mid_grid_restart_no_duplicates(self):
         c = self.client()
         grid = self.submit_grid(c, end_time=5e-8, elements=800)
