@@ -5,17 +5,24 @@ each time, then check what an operator relies on (docs/reliability.md):
   none is lost or stuck;
 - each SUCCEEDED result opens, is marked complete and matches its catalogued summary;
 - no job ran more times than its attempt counter says (attempt history rows <= attempt);
-- the catalogue passes PRAGMA integrity_check.
+- the catalogue passes PRAGMA integrity_check;
+- kills during mesh uploads (an upload runs in a thread in about half the rounds, the kill
+  landing before, during or after it): every mesh whose UploadMesh answer arrived is listed
+  after the last restart, its file holds exactly the uploaded bytes (id = SHA-256), and no
+  staged or checker file is left in DATA/meshes/uploads.
 
 SOFTSHOCK_CHAOS_KILLS (default 20) sets the number of kills, SOFTSHOCK_CHAOS_SEED the random
 seed; the figures (kills, acknowledged, lost, corrupt, restart-to-healthy) are printed.
 """
 
+import glob
+import hashlib
 import json
 import os
 import random
 import sqlite3
 import statistics
+import threading
 import time
 import unittest
 
@@ -23,6 +30,7 @@ import h5py
 
 from softshock_harness import (DaemonTestCase, SoftshockError, TERMINAL, small_spec,
                                state_name)
+from test_meshes import mesh_rounded_square
 
 KILLS = int(os.environ.get("SOFTSHOCK_CHAOS_KILLS", "20"))
 SEED = int(os.environ.get("SOFTSHOCK_CHAOS_SEED", "12"))
@@ -38,8 +46,16 @@ class ChaosTest(DaemonTestCase):
         rng = random.Random(SEED)
         acknowledged = set()
         restarts = []
+        uploads = self._upload_files(rng)
+        meshes_acknowledged, uploads_started, answers = {}, 0, []
         for _ in range(KILLS):
             c = self.client(timeout=5)
+            uploader = None
+            if rng.random() < 0.5:
+                uploads_started += 1
+                uploader = threading.Thread(
+                    target=self._upload, args=(rng.choice(uploads), meshes_acknowledged, answers))
+                uploader.start()
             try:
                 for _ in range(rng.randint(1, 3)):
                     spec = small_spec(rng.choice([300, 600, 1200]), rng.choice([2e-8, 4e-8, 8e-8]))
@@ -59,6 +75,9 @@ class ChaosTest(DaemonTestCase):
             self.assertIsNone(self.daemon.proc.poll(), "softshockd died by itself:\n" +
                               self.daemon.log_tail())
             self.daemon.kill9()
+            if uploader is not None:
+                uploader.join(timeout=30)
+                self.assertFalse(uploader.is_alive(), "an upload hung past the daemon's death")
             started = time.monotonic()
             self.daemon.start()
             restarts.append(time.monotonic() - started)
@@ -94,7 +113,19 @@ class ChaosTest(DaemonTestCase):
                 corrupt.append(job_id)
         self.assertEqual(corrupt, [], "SUCCEEDED jobs whose result does not match the summary")
 
+        listed = {m.id: m for m in c.list_meshes()}
+        missing = sorted(set(meshes_acknowledged) - set(listed))
+        self.assertEqual(missing, [], "acknowledged uploads missing after the kills")
+        uploads_dir = os.path.join(self.data_dir, "meshes", "uploads")
+        for mesh_id, sha in meshes_acknowledged.items():
+            self.assertEqual(mesh_id, sha)
+            with open(os.path.join(uploads_dir, mesh_id + ".msh"), "rb") as f:
+                self.assertEqual(hashlib.sha256(f.read()).hexdigest(), sha, mesh_id)
+            self.assertGreater(listed[mesh_id].elements, 0, mesh_id)
+
         self.assertEqual(self.daemon.stop(), 0)
+        leftovers = [os.path.basename(p) for p in glob.glob(os.path.join(uploads_dir, ".*"))]
+        self.assertEqual(leftovers, [], "staged or checker files left after the kills")
         db = sqlite3.connect(os.path.join(self.data_dir, "catalogue.sqlite"))
         try:
             self.assertEqual(db.execute("PRAGMA integrity_check").fetchone()[0], "ok")
@@ -108,7 +139,31 @@ class ChaosTest(DaemonTestCase):
 
         print(f"\nchaos: kills={KILLS} seed={SEED} acknowledged={len(acknowledged)} lost=0 "
               f"stuck=0 corrupt=0 states={states} restart-to-healthy median="
-              f"{statistics.median(restarts):.3f}s max={max(restarts):.3f}s")
+              f"{statistics.median(restarts):.3f}s max={max(restarts):.3f}s "
+              f"uploads started={uploads_started} answered={len(answers)} (killed before the "
+              f"answer {uploads_started - len(answers)}) distinct meshes stored="
+              f"{len(meshes_acknowledged)} lost=0 leftovers=0")
+
+    def _upload_files(self, rng):
+        """A few distinct meshes of 0.1-1 MB, so that a kill often lands inside an upload."""
+        folder = os.path.join(self.tmp, "uploads")
+        os.makedirs(folder)
+        paths = []
+        for k in range(4):
+            path = os.path.join(folder, f"square{k}.msh")
+            mesh_rounded_square(path, side=1.2e-4 + k * 1e-6, size=rng.choice([2e-6, 3e-6, 5e-6]))
+            paths.append(path)
+        return paths
+
+    def _upload(self, path, acknowledged, answers):
+        with open(path, "rb") as f:
+            sha = hashlib.sha256(f.read()).hexdigest()
+        try:
+            mesh = self.client(timeout=5).upload_mesh(path)
+        except SoftshockError:  # the daemon died under it: not acknowledged
+            return
+        answers.append(mesh.id)
+        acknowledged[mesh.id] = sha  # the id is checked against the bytes' SHA-256 at the end
 
     def _exists(self, c, job_id):
         try:
