@@ -167,20 +167,14 @@ inline __attribute__((always_inline)) void element_loop(const ElementGeometry& g
       // c^2 = (K + 4/3 mu) / rho with rho = rho0 / J (continuum::longitudinal_speed_sq).
       const double c_sq = (bulk_modulus + four_thirds_mu) * j * inv_rho0;
 
-      // Five quotients share one division: 1/J, 1/(longest edge)^2 (the smallest altitude),
-      // 1/(J + J_prev) (ln(J / J_prev)), 1/(J_prev dt) (the velocity gradient), 1/(dt c^2) (z).
-      // Each is 1/(product of all five) times the other four: a few ulp, and (SI units; the
-      // product ~1e-26 at 16.5k elements) far from under- or overflow for any mesh above a
-      // nanometre.
+      // Five quotients, one division (continuum::step_reciprocals); the length is the longest
+      // edge, so 1/length^2 gives the smallest altitude.
       const cm::Mat2 f_prev{fxx[e], fxy[e], fyx[e], fyy[e]};
       const double j_prev = cm::det(f_prev);  // bit for bit the J of the last evaluation
       const double l_sq = cm::longest_edge_sq(e1x, e1y, e2x, e2y);
-      const double den_u = j + j_prev, den_v = j_prev * dt, den_z = dt * c_sq;
-      const double p_a = j * l_sq, p_b = den_u * den_v;
-      const double ab = p_a * p_b, ac = p_a * den_z, bc = p_b * den_z;
-      const double r = 1.0 / (ab * den_z);
-      const double inv_j = r * bc * l_sq, inv_l_sq = r * bc * j;
-      const double inv_u = r * ac * den_v, inv_v = r * ac * den_u, inv_z = r * ab;
+      const auto q = cm::step_reciprocals(j, l_sq, j_prev, dt, c_sq);
+      const double inv_j = q.j, inv_l_sq = q.length_sq;
+      const double inv_u = q.j_sum, inv_v = q.j_prev_dt, inv_z = q.dt_c_sq;
 
       double j_minus_23;
       if constexpr (kVolumetric == Volumetric::kNodal)

@@ -257,14 +257,11 @@ SOFTSHOCK_ALWAYS_INLINE void tet4_loop(const Tet4Geometry& g, const PackedNode3*
     }
     const V c_sq = (bulk_modulus + four_thirds_mu) * j * inv_rho0;
 
-    // Five quotients, one division (as for triangles): 1/J, 1/face^2 (the smallest altitude),
-    // 1/(J + J_prev), 1/(J_prev dt), 1/(dt c^2).
-    const V den_u = j + j_prev, den_v = j_prev * dt, den_z = dt * c_sq;
-    const V p_a = j * face_sq, p_b = den_u * den_v;
-    const V ab = p_a * p_b, ac = p_a * den_z, bc = p_b * den_z;
-    const V r = 1.0 / (ab * den_z);
-    const V inv_j = r * bc * face_sq, inv_face_sq = r * bc * j;
-    const V inv_u = r * ac * den_v, inv_v = r * ac * den_u, inv_z = r * ab;
+    // Five quotients, one division (continuum::step_reciprocals, as for triangles); face_sq is
+    // the largest face's |cross product|^2 (twice its area, squared): the smallest altitude.
+    const auto q = cm::step_reciprocals(j, face_sq, j_prev, dt, c_sq);
+    const V inv_j = q.j, inv_face_sq = q.length_sq;
+    const V inv_u = q.j_sum, inv_v = q.j_prev_dt, inv_z = q.dt_c_sq;
 
     V j_minus_23;
     if constexpr (kVolumetric == Volumetric::kNodal)
