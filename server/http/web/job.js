@@ -153,7 +153,7 @@ export function jobPage(root, ctx, id) {
       const t0 = num(m.time[0]) * 1e9, t1 = num(m.time[rows - 1]) * 1e9;
       heatMap(modesCanvas, grid, cols, rows, {
         xRange: [t0, t1], yRange: [m.mode_min, m.mode_min + cols], xLabel: "t (ns)",
-        yLabel: "mode n", barLabel: "log10 amplitude/R0", log: true, decades: 4 });
+        yLabel: "mode n", barLabel: "log10 a/R0", log: true, decades: 4 });
     } catch (e) {
       modesBox.append(el("p", { class: "error" }, `Rim modes: ${e.message}`));
     }

@@ -264,8 +264,11 @@ export function gridMap(xAxis, yAxis, cell, { width = 640, height = 360, id = ""
         r.addEventListener("keydown", (e) => { if (e.key === "Enter") onClick(job); });
       }
       if (cw > 46 && ch > 18) {
+        // Light text on the dark lower half of the colour map, dark text on the rest.
+        const dark = finite && (value - lo) / (hi - lo) < 0.5;
         svg("text", { x: m.l + (i + 0.5) * cw, y: m.t + ph - (j + 0.5) * ch + 4,
-                      "text-anchor": "middle", class: "cell-text" }, root).textContent = fmt(value);
+                      "text-anchor": "middle", class: dark ? "cell-text light" : "cell-text" },
+            root).textContent = fmt(value);
       }
     }
   }
