@@ -16,17 +16,20 @@
 
 #include "grpc/health/v1/health.pb.h"
 #include "server/daemon_config.hpp"
+#include "server/http/http_frontend.hpp"
 #include "server/jobs/job_events.hpp"
 #include "server/jobs/job_runner.hpp"
 #include "server/jobs/mesh_process.hpp"
 #include "server/jobs/scheduler.hpp"
 #include "server/jobs/slurm_executor.hpp"
 #include "server/log.hpp"
+#include "server/metrics/daemon_metrics.hpp"
 #include "server/policy/users.hpp"
 #include "server/store/catalogue.hpp"
 #include "server/transport/auth.hpp"
 #include "server/transport/health_warnings.hpp"
 #include "server/transport/mesh_service.hpp"
+#include "server/transport/rpc_metrics.hpp"
 #include "server/transport/simulation_service.hpp"
 
 namespace softshock::server {
@@ -78,6 +81,9 @@ struct Daemon::Impl {
   DaemonConfig config;
   int lock_fd = -1;
   std::unique_ptr<Catalogue> catalogue;
+  // server/metrics/: after the catalogue it reads, before everything that reports to it (job
+  // events, the runner, the gRPC server's interceptor), so it outlives them all.
+  std::unique_ptr<DaemonMetrics> metrics;
   JobEvents events;
   std::unique_ptr<JobRunner> runner;
   std::unique_ptr<Authenticator> auth;
@@ -87,6 +93,7 @@ struct Daemon::Impl {
   std::unique_ptr<MeshService> mesh_service;
   std::unique_ptr<grpc::Server> server;
   int port = 0;
+  std::unique_ptr<HttpFrontend> http;  // server/http/: the dashboard and /metrics
   bool stopped = false;
   // What the start-up log warns about the set-up; health answers repeat it.
   std::vector<std::string> setup_warnings;
@@ -155,6 +162,12 @@ Daemon::Daemon(DaemonConfig config) : impl_(std::make_unique<Impl>()) {
 
   d.catalogue =
       std::make_unique<Catalogue>((fs::path(config.data_dir) / "catalogue.sqlite").string());
+  d.metrics = std::make_unique<DaemonMetrics>(*d.catalogue, config.data_dir, config.min_free_bytes,
+                                              SOFTSHOCK_VERSION);
+  d.events.set_observer([m = d.metrics.get()](JobEventKind kind, const std::string& id,
+                                              const JobProgressRecord* progress) {
+    m->on_job_event(kind, id, progress);
+  });
 
   RunnerConfig rc;
   rc.data_dir = config.data_dir;
@@ -236,6 +249,7 @@ Daemon::Daemon(DaemonConfig config) : impl_(std::make_unique<Impl>()) {
   d.service = std::make_unique<SimulationService>(sc, *d.catalogue, *d.scheduler, d.events,
                                                   *d.runner, *d.auth, *d.meshes);
   d.mesh_service = std::make_unique<MeshService>(*d.meshes, *d.catalogue, *d.auth);
+  add_service_gauges(*d.metrics, *d.scheduler, *d.service, *d.auth, config.workers);
 
   std::ostringstream counts;
   for (const auto& [state, n] : d.catalogue->counts())
@@ -288,9 +302,10 @@ void Daemon::start() {
   builder.AddListeningPort(d.config.listen, creds, &d.port);
   builder.RegisterService(d.service.get());
   builder.RegisterService(d.mesh_service.get());
-  if (!d.setup_warnings.empty()) {
+  {
     std::vector<std::unique_ptr<grpc::experimental::ServerInterceptorFactoryInterface>> creators;
-    creators.push_back(health_warnings(d.setup_warnings));
+    creators.push_back(rpc_metrics(*d.metrics));
+    if (!d.setup_warnings.empty()) creators.push_back(health_warnings(d.setup_warnings));
     builder.experimental().SetInterceptorCreators(std::move(creators));
   }
   builder.SetMaxReceiveMessageSize(d.config.max_receive_bytes);
@@ -303,6 +318,30 @@ void Daemon::start() {
   if (!d.server || d.port == 0) {
     throw std::runtime_error("cannot listen on " + d.config.listen);
   }
+  if (!d.config.http_listen.empty() || !d.config.metrics_listen.empty()) {
+    // The dashboard's API calls this server's own services in-process (server/http/).
+    grpc::ChannelArguments args;
+    args.SetMaxReceiveMessageSize(16 << 20);
+    d.http = std::make_unique<HttpFrontend>(
+        HttpFrontendConfig{d.config.http_listen, d.config.metrics_listen, d.config.tls_cert,
+                           d.config.tls_key},
+        *d.metrics);
+    d.http->start(d.server->InProcessChannel(args));
+    if (d.http->dashboard_port() != 0) {
+      log_info("dashboard on ", d.http->dashboard_tls() ? "https" : "http", "://",
+               d.config.http_listen, " (port ", d.http->dashboard_port(), ")");
+      if (!d.config.http_port_file.empty()) {
+        write_port_file(d.config.http_port_file, d.http->dashboard_port());
+      }
+    }
+    if (d.http->metrics_port() != 0) {
+      log_info("metrics on http://", d.config.metrics_listen, "/metrics (port ",
+               d.http->metrics_port(), ")");
+      if (!d.config.metrics_port_file.empty()) {
+        write_port_file(d.config.metrics_port_file, d.http->metrics_port());
+      }
+    }
+  }
   d.scheduler->start();
   if (!d.config.port_file.empty()) write_port_file(d.config.port_file, d.port);
   log_info("listening on ", d.config.listen, " (port ", d.port, ")");
@@ -310,6 +349,14 @@ void Daemon::start() {
 
 int Daemon::port() const {
   return impl_->port;
+}
+
+int Daemon::http_port() const {
+  return impl_->http ? impl_->http->dashboard_port() : 0;
+}
+
+int Daemon::metrics_port() const {
+  return impl_->http ? impl_->http->metrics_port() : 0;
 }
 
 bool Daemon::stop() {
@@ -321,7 +368,8 @@ bool Daemon::stop() {
   if (d.server) {
     if (auto* health = d.server->GetHealthCheckService()) health->SetServingStatus(false);
   }
-  d.events.shutdown();  // ends WatchJob streams and waits in CancelJob
+  if (d.http) d.http->stop();  // its requests are calls of the server below: first
+  d.events.shutdown();         // ends WatchJob streams and waits in CancelJob
   if (d.server) {
     d.server->Shutdown(system_clock::now() + duration_cast<system_clock::duration>(
                                                  duration<double>(d.config.rpc_drain_s)));

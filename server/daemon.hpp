@@ -27,6 +27,11 @@ struct DaemonConfig {
   std::string users_file;
   bool insecure_no_auth = false;  // allow no token on a non-loopback listen address
   std::string tls_cert, tls_key;  // both or neither
+  // HTTP (server/http/, docs/api.md "HTTP: dashboard and metrics"): the dashboard and its JSON
+  // API, behind the same token and TLS as gRPC (empty = off); /metrics in the Prometheus text
+  // format without a token (empty = off). Port files as port_file.
+  std::string http_listen, http_port_file;
+  std::string metrics_listen, metrics_port_file;
   int max_elements = 2'000'000;
   double max_end_time_s = 1e-5;
   double max_wall_time_s = 21600;  // 6 h; 0 = none
@@ -72,6 +77,8 @@ class Daemon {
   // Starts listening and the workers; writes the port file. Throws if it cannot listen.
   void start();
   int port() const;
+  int http_port() const;     // 0 = no dashboard
+  int metrics_port() const;  // 0 = no metrics listener
   // Orderly stop: stop accepting, end streams, requeue running jobs. Returns false if some
   // job did not stop within job_stop_s (it was recorded as QUEUED anyway; the caller should
   // exit the process promptly, without running destructors that wait for it).

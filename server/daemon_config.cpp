@@ -170,6 +170,22 @@ const std::vector<Setting>& settings() {
       {"tls-key", "FILE", "PEM private key",
        [](DaemonConfig& c, const std::string& v) { c.tls_key = v; },
        [](const DaemonConfig& c) { return show_path(c.tls_key); }},
+      {"http-listen", "ADDR",
+       "serve the dashboard and its JSON API here, e.g. 127.0.0.1:8080 (same token and TLS as "
+       "gRPC; default: off)",
+       [](DaemonConfig& c, const std::string& v) { c.http_listen = v; },
+       [](const DaemonConfig& c) { return show_path(c.http_listen); }},
+      {"http-port-file", "FILE", "write the dashboard's bound port here once listening",
+       [](DaemonConfig& c, const std::string& v) { c.http_port_file = v; },
+       [](const DaemonConfig& c) { return show_path(c.http_port_file); }},
+      {"metrics-listen", "ADDR",
+       "serve Prometheus metrics at /metrics here, without a token, e.g. 0.0.0.0:9464 (default: "
+       "off)",
+       [](DaemonConfig& c, const std::string& v) { c.metrics_listen = v; },
+       [](const DaemonConfig& c) { return show_path(c.metrics_listen); }},
+      {"metrics-port-file", "FILE", "write the metrics listener's bound port here",
+       [](DaemonConfig& c, const std::string& v) { c.metrics_port_file = v; },
+       [](const DaemonConfig& c) { return show_path(c.metrics_port_file); }},
       {"max-concurrent-rpcs", "N",
        "calls served at once; more get RESOURCE_EXHAUSTED (default 256)",
        [](DaemonConfig& c, const std::string& v) {
@@ -481,7 +497,8 @@ LoadedConfig load_daemon_config(const std::vector<std::string>& args, const EnvL
                       source_of(loaded, "tls-key") + ") go together: set both or neither");
   }
   if (auto problem = exposure_problem(c)) {
-    throw ConfigError(*problem + " [listen from " + source_of(loaded, "listen") + "]");
+    const char* key = is_loopback_listen_address(c.listen) ? "http-listen" : "listen";
+    throw ConfigError(*problem + " [" + key + " from " + source_of(loaded, key) + "]");
   }
   return loaded;
 }
@@ -553,9 +570,17 @@ bool is_loopback_listen_address(const std::string& listen) {
 }
 
 std::optional<std::string> transport_warning(const DaemonConfig& config) {
-  if ((config.token_file.empty() && config.users_file.empty()) || !config.tls_cert.empty() ||
-      is_loopback_listen_address(config.listen)) {
+  if ((config.token_file.empty() && config.users_file.empty()) || !config.tls_cert.empty()) {
     return std::nullopt;
+  }
+  if (is_loopback_listen_address(config.listen)) {
+    if (config.http_listen.empty() || is_loopback_listen_address(config.http_listen)) {
+      return std::nullopt;
+    }
+    return "serving the dashboard on " + config.http_listen +
+           " with a bearer token but without TLS: the token crosses the network in clear text. "
+           "Set tls-cert and tls-key, or put a TLS-terminating proxy in front and listen on "
+           "loopback";
   }
   return "serving " + config.listen +
          " with a bearer token but without TLS: the token crosses the network in clear text. "
@@ -564,9 +589,18 @@ std::optional<std::string> transport_warning(const DaemonConfig& config) {
 }
 
 std::optional<std::string> exposure_problem(const DaemonConfig& config) {
-  if (!config.token_file.empty() || !config.users_file.empty() || config.insecure_no_auth ||
-      is_loopback_listen_address(config.listen)) {
+  if (!config.token_file.empty() || !config.users_file.empty() || config.insecure_no_auth) {
     return std::nullopt;
+  }
+  if (is_loopback_listen_address(config.listen)) {
+    // The dashboard is the same service over HTTP: the same rule.
+    if (config.http_listen.empty() || is_loopback_listen_address(config.http_listen)) {
+      return std::nullopt;
+    }
+    return "refusing to serve the dashboard on " + config.http_listen +
+           " without authentication: it is not a loopback address, so anyone who reaches it "
+           "could cancel jobs and read every result. Set token-file or users-file, or "
+           "insecure-no-auth if another layer authenticates";
   }
   return "refusing to listen on " + config.listen +
          " without authentication: it is not a loopback address, so anyone who reaches it "

@@ -9,18 +9,24 @@ std::shared_ptr<JobEvents::Entry>& JobEvents::entry(const std::string& id) {
 }
 
 void JobEvents::notify(const std::string& id) {
-  std::lock_guard lock(mutex_);
-  auto& e = entry(id);
-  e->version = next_version_++;
-  e->changed.notify_all();
+  {
+    std::lock_guard lock(mutex_);
+    auto& e = entry(id);
+    e->version = next_version_++;
+    e->changed.notify_all();
+  }
+  if (observer_) observer_(JobEventKind::kChanged, id, nullptr);
 }
 
 void JobEvents::set_progress(const std::string& id, const JobProgressRecord& progress) {
-  std::lock_guard lock(mutex_);
-  auto& e = entry(id);
-  e->version = next_version_++;
-  e->progress = progress;
-  e->changed.notify_all();
+  {
+    std::lock_guard lock(mutex_);
+    auto& e = entry(id);
+    e->version = next_version_++;
+    e->progress = progress;
+    e->changed.notify_all();
+  }
+  if (observer_) observer_(JobEventKind::kProgress, id, &progress);
 }
 
 std::optional<JobProgressRecord> JobEvents::progress(const std::string& id) const {
@@ -30,13 +36,17 @@ std::optional<JobProgressRecord> JobEvents::progress(const std::string& id) cons
 }
 
 void JobEvents::forget(const std::string& id) {
-  std::lock_guard lock(mutex_);
-  auto it = entries_.find(id);
-  if (it == entries_.end()) return;
-  // Waiters still hold the entry: give it a new version so they wake and re-read the job.
-  it->second->version = next_version_++;
-  it->second->changed.notify_all();
-  entries_.erase(it);
+  {
+    std::lock_guard lock(mutex_);
+    auto it = entries_.find(id);
+    if (it != entries_.end()) {
+      // Waiters still hold the entry: give it a new version so they wake and re-read the job.
+      it->second->version = next_version_++;
+      it->second->changed.notify_all();
+      entries_.erase(it);
+    }
+  }
+  if (observer_) observer_(JobEventKind::kStopped, id, nullptr);
 }
 
 uint64_t JobEvents::version(const std::string& id) const {

@@ -7,6 +7,7 @@
 #include <chrono>
 #include <condition_variable>
 #include <cstdint>
+#include <functional>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -17,8 +18,19 @@
 
 namespace softshock::server {
 
+// What an observer of JobEvents hears about (the daemon's metrics): a state change (notify), live
+// progress (set_progress), or a job that stopped running or was dropped (forget).
+enum class JobEventKind { kChanged, kProgress, kStopped };
+
 class JobEvents {
  public:
+  // Called after every event, outside the lock, on the thread that caused it (progress: the
+  // solver's, between steps; keep it cheap). `progress` is set for kProgress only. Set it
+  // before the first event (the daemon does, before its workers start).
+  using Observer = std::function<void(JobEventKind kind, const std::string& id,
+                                      const JobProgressRecord* progress)>;
+  void set_observer(Observer observer) { observer_ = std::move(observer); }
+
   // A state change (submit, start, finish, cancel, delete): bump the version, wake watchers.
   void notify(const std::string& id);
   // Latest progress of a running job; bumps the version too.
@@ -49,6 +61,7 @@ class JobEvents {
   };
   std::shared_ptr<Entry>& entry(const std::string& id);  // creates; mutex_ held
 
+  Observer observer_;
   mutable std::mutex mutex_;
   mutable std::map<std::string, std::shared_ptr<Entry>> entries_;
   uint64_t next_version_ = 1;  // versions only grow, so a recreated entry never repeats one

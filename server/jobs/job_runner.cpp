@@ -475,6 +475,7 @@ void JobRunner::run_job(const std::string& id, CancelToken& cancel) {
   control.cancel = cancel.flag();
   control.on_progress = [&](const Progress& p) {
     last_progress = to_record(p);
+    last_progress.elements = static_cast<int64_t>(problem.mesh.element_count());
     const auto now = Clock::now();
     if (now < next_publish) return;
     next_publish = now + std::chrono::duration_cast<Clock::duration>(progress_every);

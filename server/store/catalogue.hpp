@@ -67,6 +67,7 @@ inline constexpr std::int64_t kCatalogueRoomBytes = std::int64_t{8} << 20;
 struct JobProgressRecord {
   double fraction = 0, simulated_time_s = 0, dt_s = 0;
   int64_t steps = 0;
+  int64_t elements = 0;  // of the running mesh, when the runner knows it (live only, not stored)
 };
 
 struct JobRecord {

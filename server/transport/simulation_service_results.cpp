@@ -285,6 +285,7 @@ Status SimulationService::field(grpc::ServerContext* ctx, const v1::GetFieldRequ
   auto* header = head.mutable_header();
   header->set_name(req.name());
   header->set_frame(static_cast<int32_t>(frame));
+  header->set_frame_count(static_cast<int32_t>(frame_times.size()));
   header->set_time(frame_times[frame]);
   header->set_components(kind.components);
   header->set_units(kind.units);

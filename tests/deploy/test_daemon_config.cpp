@@ -234,6 +234,29 @@ TEST_F(DaemonConfigTest, RefusesExposedAddressWithoutToken) {
   EXPECT_FALSE(exposure_problem(open).has_value());
 }
 
+TEST_F(DaemonConfigTest, TheDashboardPortFollowsTheSameExposureRule) {
+  // The dashboard is the service over HTTP: off loopback it needs a token as --listen does.
+  const std::string e = error_of({"--http-listen", "0.0.0.0:8080"});
+  EXPECT_NE(e.find("refusing to serve the dashboard on 0.0.0.0:8080"), std::string::npos) << e;
+  EXPECT_NE(e.find("[http-listen from flag --http-listen]"), std::string::npos) << e;
+  EXPECT_NO_THROW(load({"--http-listen", "127.0.0.1:8080"}));
+  EXPECT_NO_THROW(load({"--http-listen", "0.0.0.0:8080", "--token-file", "/run/t"}));
+  // The metrics listener serves no job data: any address, no token needed.
+  EXPECT_NO_THROW(load({"--metrics-listen", "0.0.0.0:9464"}));
+  EXPECT_EQ(load({"--metrics-listen", "0.0.0.0:9464"}).config.metrics_listen, "0.0.0.0:9464");
+  // A token sent in clear text to the dashboard off loopback is warned about.
+  DaemonConfig c;
+  c.token_file = "/run/t";
+  EXPECT_FALSE(transport_warning(c).has_value());
+  c.http_listen = "0.0.0.0:8080";
+  const auto warning = transport_warning(c);
+  ASSERT_TRUE(warning.has_value());
+  EXPECT_NE(warning->find("serving the dashboard on 0.0.0.0:8080"), std::string::npos);
+  c.tls_cert = "/etc/c.pem";
+  c.tls_key = "/etc/k.pem";
+  EXPECT_FALSE(transport_warning(c).has_value());
+}
+
 TEST_F(DaemonConfigTest, DescriptionShowsValuesAndSourcesButNoToken) {
   const std::string token_file = write("token", "s3cret-token-value\n");
   env_["SOFTSHOCK_TOKEN_FILE"] = token_file;

@@ -217,7 +217,7 @@ class KubernetesTest(unittest.TestCase):
                           if k in spec["selector"]["matchLabels"]})
 
     def test_native_grpc_probes_on_the_health_service(self):
-        (port,) = self.container["ports"]
+        (port,) = [p for p in self.container["ports"] if p["name"] == "grpc"]
         self.assertEqual(port["containerPort"], self.port)
         for probe in ("livenessProbe", "readinessProbe", "startupProbe"):
             self.assertEqual(self.container[probe]["grpc"]["port"], self.port, probe)
@@ -277,8 +277,33 @@ class KubernetesTest(unittest.TestCase):
             self.assertEqual(s["kind"], "Service")
             for k, v in s["spec"]["selector"].items():
                 self.assertEqual(labels[k], v)
-            (port,) = s["spec"]["ports"]
-            self.assertEqual(port["targetPort"], self.container["ports"][0]["name"])
+            container_ports = {p["name"] for p in self.container["ports"]}
+            for port in s["spec"]["ports"]:
+                self.assertIn(port["targetPort"], container_ports)
+            self.assertEqual(s["spec"]["ports"][0]["targetPort"], "grpc")
+
+    def test_prometheus_scrapes_the_metrics_listener(self):
+        # The annotations and the ServiceMonitor example point at the port the daemon serves
+        # /metrics on (SOFTSHOCK_METRICS_LISTEN), which the container and the Service expose.
+        annotations = self.sts["spec"]["template"]["metadata"]["annotations"]
+        self.assertEqual(annotations["prometheus.io/scrape"], "true")
+        self.assertEqual(annotations["prometheus.io/path"], "/metrics")
+        port = port_of(self.env["SOFTSHOCK_METRICS_LISTEN"])
+        self.assertEqual(int(annotations["prometheus.io/port"]), port)
+        (container_port,) = [p for p in self.container["ports"] if p["name"] == "metrics"]
+        self.assertEqual(container_port["containerPort"], port)
+        service = {s["metadata"]["name"]: s for s in self.services}["softshockd"]
+        (metrics,) = [p for p in service["spec"]["ports"] if p["name"] == "metrics"]
+        self.assertEqual(metrics["targetPort"], "metrics")
+        (monitor,) = load_yaml_documents("k8s/servicemonitor.example.yaml")
+        self.assertEqual(monitor["kind"], "ServiceMonitor")
+        for k, v in monitor["spec"]["selector"]["matchLabels"].items():
+            self.assertEqual(service["metadata"]["labels"][k], v)
+        (endpoint,) = monitor["spec"]["endpoints"]
+        self.assertEqual(endpoint["port"], metrics["name"])
+        self.assertEqual(endpoint["path"], "/metrics")
+        (k,) = load_yaml_documents("k8s/kustomization.yaml")
+        self.assertNotIn("servicemonitor.example.yaml", k["resources"])  # needs the operator
 
     def test_kustomization_lists_existing_manifests(self):
         (k,) = load_yaml_documents("k8s/kustomization.yaml")
