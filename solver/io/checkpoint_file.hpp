@@ -1,6 +1,6 @@
 // Checkpoint files: a run's restart state (solver/run_state.hpp) with what is needed to check it
-// belongs to a run and to continue that run's result file (docs/results-format.md,
-// "Checkpoints"). A simple versioned binary of named records, each array whole, with a 64-bit
+// belongs to a run and to continue that run's result file (docs/reliability.md, "Checkpoints").
+// A simple versioned binary of named records, each array whole, with a 64-bit
 // checksum over everything before the end record: a truncated or altered file is refused, never
 // half-read. Written to a temporary name, fsynced and renamed, so a crash leaves either the old
 // checkpoint or the new one. Plain file I/O: no HDF5, so the process-wide HDF5 lock that result
