@@ -175,6 +175,7 @@ Daemon::Daemon(DaemonConfig config) : impl_(std::make_unique<Impl>()) {
   rc.limits.max_end_time_s = config.max_end_time_s;
   rc.solver_threads = config.solver_threads;
   rc.max_wall_time_s = config.max_wall_time_s;
+  rc.checkpoint_interval_s = config.checkpoint_interval_s;
   rc.mesh_cache_bytes = static_cast<std::uint64_t>(config.mesh_cache_bytes);
   rc.admission.max_steps = config.max_steps;
   rc.admission.max_memory_bytes = config.max_job_memory_bytes;
@@ -254,14 +255,15 @@ Daemon::Daemon(DaemonConfig config) : impl_(std::make_unique<Impl>()) {
   std::ostringstream counts;
   for (const auto& [state, n] : d.catalogue->counts())
     counts << " " << to_string(state) << "=" << n;
-  log_info("softshockd ", SOFTSHOCK_VERSION, " data-dir=", config.data_dir,
-           " listen=", config.listen, " workers=", config.workers,
-           " max-queued=", config.max_queued, " solver-threads=", config.solver_threads,
-           " max-elements=", config.max_elements, " max-end-time=", config.max_end_time_s,
-           " max-wall-time=", config.max_wall_time_s, " max-attempts=", config.max_attempts,
-           " executor=", config.executor, " auth=", d.auth->enabled() ? "bearer-token" : "none",
-           " users=", d.auth->user_count(), " tls=", config.tls_cert.empty() ? "off" : "on",
-           " catalogue-schema=", d.catalogue->schema_version());
+  log_info(
+      "softshockd ", SOFTSHOCK_VERSION, " data-dir=", config.data_dir, " listen=", config.listen,
+      " workers=", config.workers, " max-queued=", config.max_queued,
+      " solver-threads=", config.solver_threads, " max-elements=", config.max_elements,
+      " max-end-time=", config.max_end_time_s, " max-wall-time=", config.max_wall_time_s,
+      " checkpoint-interval=", config.checkpoint_interval_s, " max-attempts=", config.max_attempts,
+      " executor=", config.executor, " auth=", d.auth->enabled() ? "bearer-token" : "none",
+      " users=", d.auth->user_count(), " tls=", config.tls_cert.empty() ? "off" : "on",
+      " catalogue-schema=", d.catalogue->schema_version());
   log_info("catalogue:", counts.str().empty() ? " empty" : counts.str(), "; ", queued.size(),
            " job(s) queued");
   if (!d.catalogue->room_held()) {

@@ -35,6 +35,8 @@ struct DaemonConfig {
   int max_elements = 2'000'000;
   double max_end_time_s = 1e-5;
   double max_wall_time_s = 21600;  // 6 h; 0 = none
+  // Wall time between a running job's checkpoints (server/jobs/job_checkpoint.hpp); 0 = none.
+  double checkpoint_interval_s = 600;
   // Admission by estimate (server/admission.hpp): steps, peak memory and result size per job.
   double max_steps = 10'000'000;
   double max_job_memory_bytes = 4.0 * (1ull << 30);

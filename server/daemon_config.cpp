@@ -214,6 +214,10 @@ const std::vector<Setting>& settings() {
       {"max-wall-time", "SECONDS", "wall-clock limit per job, 0 = none (default 21600 = 6 h)",
        [](DaemonConfig& c, const std::string& v) { c.max_wall_time_s = parse_seconds(v); },
        [](const DaemonConfig& c) { return show_number(c.max_wall_time_s); }},
+      {"checkpoint-interval", "SECONDS",
+       "wall time between a running job's restartable checkpoints, 0 = none (default 600)",
+       [](DaemonConfig& c, const std::string& v) { c.checkpoint_interval_s = parse_seconds(v); },
+       [](const DaemonConfig& c) { return show_number(c.checkpoint_interval_s); }},
       {"solver-threads", "N", "element-loop threads per job (default 1)",
        [](DaemonConfig& c, const std::string& v) {
          c.solver_threads = static_cast<int>(parse_int(v, 1, 1024));

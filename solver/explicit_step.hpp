@@ -21,6 +21,7 @@
 
 #include "element_traits.hpp"
 #include "model.hpp"
+#include "run_state.hpp"
 #include "simulation.hpp"
 
 namespace softshock {
@@ -63,9 +64,17 @@ class ExplicitStep {
   // the evaluation at t = 0, so that only steps count.
   const std::vector<std::array<double, kStepPasses>>& pass_seconds() const { return pass_seconds_; }
   void reset_pass_times() { pass_seconds_.assign(threads_, {}); }
+  // The state one step hands the next (run_state.hpp), as named arrays (explicit_step_state.cpp):
+  // save_state appends them; restore_state puts them back, throwing std::invalid_argument that
+  // names an array missing or of another size.
+  void save_state(std::vector<StateArray>& out) const;
+  void restore_state(const std::vector<StateArray>& in);
 
  private:
   using Clock = std::chrono::steady_clock;
+  // Calls visit(name, data, count) for each array of the state (double or float data).
+  template <class Visit>
+  void visit_state(Visit&& visit);
   std::pair<std::size_t, std::size_t> node_range(int tid) const;
   std::pair<std::size_t, std::size_t> element_range(int tid) const;
   // Per-thread partial nodal sums into `out`, added in thread order over the node range, each

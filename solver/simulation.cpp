@@ -12,6 +12,7 @@
 #include "diagnostics.hpp"
 #include "element_kernels.hpp"
 #include "explicit_step.hpp"
+#include "run_state.hpp"
 
 namespace softshock {
 
@@ -173,20 +174,12 @@ RunResult run_elements(const Problem& problem, const SolverOptions& options,
   const KernelView kernel_view = step.kernel_view();
   double t = 0.0, dissipated = 0.0, external_work = 0.0;
   int64_t steps = 0;
-  KernelTotals totals = step.evaluate(0.0, 0.0, true);
-  step.reset_pass_times();  // count steps only
-  if (totals.bad_element >= 0) {
-    result.status = RunStatus::kFailed;
-    result.failure = failure_kind(totals);
-    result.error = describe_failure(totals, 0.0, 0);
-    return result;
-  }
+  KernelTotals totals;
   const double pulse_end = step.pulse_end_s();
-  double dt_stable = step.next_step(t, totals);
-  result.min_dt_s = result.max_dt_s = dt_stable;
+  double dt_stable = 0;
   // The smallest stable step since the last sample, and its element.
-  double interval_min_dt = dt_stable;
-  int64_t interval_min_element = totals.min_step_element;
+  double interval_min_dt = 0;
+  int64_t interval_min_element = -1;
   // Whether the last evaluation summed the stored energy and the elements' aspect ratio (a sample
   // was due after it). A sample that was not -- the last state of a run stopped by max_steps or a
   // cancellation -- gets them from one more pass (ExplicitStep::sample_sums).
@@ -233,14 +226,93 @@ RunResult run_elements(const Problem& problem, const SolverOptions& options,
     result.error = buf;
     return true;
   };
-  sample_history();
-  if (mesh_distorted()) return result;
-  if (options.output_interval_s > 0 && control.on_frame) write_frame();
 
   Schedule schedule{options.history_interval_s, options.output_interval_s, options.end_time_s};
-  const double tiny = 1e-9 * dt_stable;
-  Progress progress{0.0, options.end_time_s, 0, dt_stable};
+  double tiny = 0;
   double last_frame_time = 0.0;
+  // Timings of the run up to a resumed state: added to this run's own at the end.
+  RunState before;
+  if (control.resume) {
+    const RunState& r = *control.resume;
+    if (r.dimension != Element::kDim || r.nodes != problem.mesh.node_count() ||
+        r.elements != problem.mesh.element_count() || r.threads != options.threads) {
+      throw std::invalid_argument(
+          "checkpoint: taken on a " + std::to_string(r.dimension) + "-D mesh of " +
+          std::to_string(r.nodes) + " nodes and " + std::to_string(r.elements) + " elements with " +
+          std::to_string(r.threads) + " thread(s), not this problem's " +
+          std::to_string(Element::kDim) + "-D " + std::to_string(problem.mesh.node_count()) +
+          " / " + std::to_string(problem.mesh.element_count()) + " with " +
+          std::to_string(options.threads));
+    }
+    if (!(r.time_s <= options.end_time_s)) {
+      throw std::invalid_argument("checkpoint: at t = " + std::to_string(r.time_s * 1e9) +
+                                  " ns, past run.end_time");
+    }
+    step.restore_state(r.arrays);
+    t = r.time_s, steps = r.steps, dt_stable = r.dt_stable_s, tiny = r.tiny_s;
+    dissipated = r.dissipated, external_work = r.external_work;
+    interval_min_dt = r.interval_min_dt_s, interval_min_element = r.interval_min_element;
+    schedule.next_history = r.next_history, schedule.next_output = r.next_output;
+    last_frame_time = r.last_frame_time_s;
+    result.min_dt_s = r.min_dt_s, result.max_dt_s = r.max_dt_s;
+    totals_sampled = r.totals_sampled, totals = r.totals;
+    result.frames_written = r.frames_written;
+    result.history = r.history;
+    before.wall_time_s = r.wall_time_s, before.kernel_time_s = r.kernel_time_s;
+    before.diagnostics_time_s = r.diagnostics_time_s, before.output_time_s = r.output_time_s;
+    before.pass_time_s = r.pass_time_s;
+  } else {
+    totals = step.evaluate(0.0, 0.0, true);
+    step.reset_pass_times();  // count steps only
+    if (totals.bad_element >= 0) {
+      result.status = RunStatus::kFailed;
+      result.failure = failure_kind(totals);
+      result.error = describe_failure(totals, 0.0, 0);
+      return result;
+    }
+    dt_stable = step.next_step(t, totals);
+    result.min_dt_s = result.max_dt_s = dt_stable;
+    interval_min_dt = dt_stable, interval_min_element = totals.min_step_element;
+    sample_history();
+    if (mesh_distorted()) return result;
+    if (options.output_interval_s > 0 && control.on_frame) write_frame();
+    tiny = 1e-9 * dt_stable;
+  }
+  Progress progress{t, options.end_time_s, steps, dt_stable};
+  // The state at the end of the step just taken (or where the loop stopped), with this run's
+  // timings added to those before it.
+  auto capture = [&](bool stopped) {
+    RunState s;
+    s.dimension = Element::kDim;
+    s.nodes = problem.mesh.node_count(), s.elements = problem.mesh.element_count();
+    s.threads = options.threads;
+    s.time_s = t, s.steps = steps, s.dt_stable_s = dt_stable, s.tiny_s = tiny;
+    s.dissipated = dissipated, s.external_work = external_work;
+    s.interval_min_dt_s = interval_min_dt, s.interval_min_element = interval_min_element;
+    s.next_history = schedule.next_history, s.next_output = schedule.next_output;
+    s.last_frame_time_s = last_frame_time;
+    s.min_dt_s = result.min_dt_s, s.max_dt_s = result.max_dt_s;
+    s.totals_sampled = totals_sampled, s.totals = totals;
+    s.frames_written = result.frames_written;
+    s.wall_time_s = before.wall_time_s + seconds_since(wall_start);
+    s.diagnostics_time_s = before.diagnostics_time_s + result.diagnostics_time_s;
+    s.output_time_s = before.output_time_s + result.output_time_s;
+    s.pass_time_s = before.pass_time_s;
+    double kernel = 0;
+    for (const auto& seconds : step.pass_seconds()) {
+      double thread_kernel = 0;
+      for (std::size_t k = 0; k < kStepPasses; ++k) {
+        if (is_kernel_pass(static_cast<StepPass>(k))) thread_kernel += seconds[k];
+        s.pass_time_s[k] = std::max(s.pass_time_s[k], before.pass_time_s[k] + seconds[k]);
+      }
+      kernel = std::max(kernel, thread_kernel);
+    }
+    s.kernel_time_s = before.kernel_time_s + kernel;
+    s.stopped = stopped;
+    s.history = result.history;
+    step.save_state(s.arrays);
+    return s;
+  };
 
   while (t < options.end_time_s - tiny) {
     if (control.cancel && control.cancel->load(std::memory_order_relaxed)) {
@@ -307,11 +379,13 @@ RunResult run_elements(const Problem& problem, const SolverOptions& options,
         last_frame_time = t;
       }
     }
-    if (control.on_progress) {
-      progress.time_s = t, progress.steps = steps, progress.dt_s = dt_stable;
-      control.on_progress(progress);
-    }
+    progress.time_s = t, progress.steps = steps, progress.dt_s = dt_stable;
+    if (control.on_progress) control.on_progress(progress);
+    if (control.on_checkpoint && control.checkpoint_due && control.checkpoint_due(progress))
+      control.on_checkpoint(capture(false));
   }
+  if (control.on_checkpoint && control.checkpoint_at_stop && result.status != RunStatus::kFailed)
+    control.on_checkpoint(capture(true));
 
   // The final state is always in the history and (when frames are on) in the last frame.
   if (result.history.time.back() < t - tiny && result.status != RunStatus::kFailed)
@@ -327,11 +401,13 @@ RunResult run_elements(const Problem& problem, const SolverOptions& options,
     double kernel = 0;
     for (std::size_t k = 0; k < kStepPasses; ++k) {
       if (is_kernel_pass(static_cast<StepPass>(k))) kernel += seconds[k];
-      result.pass_time_s[k] = std::max(result.pass_time_s[k], seconds[k]);
+      result.pass_time_s[k] = std::max(result.pass_time_s[k], before.pass_time_s[k] + seconds[k]);
     }
-    result.kernel_time_s = std::max(result.kernel_time_s, kernel);
+    result.kernel_time_s = std::max(result.kernel_time_s, before.kernel_time_s + kernel);
   }
-  result.wall_time_s = seconds_since(wall_start);
+  result.diagnostics_time_s += before.diagnostics_time_s;
+  result.output_time_s += before.output_time_s;
+  result.wall_time_s = before.wall_time_s + seconds_since(wall_start);
   return result;
 }
 

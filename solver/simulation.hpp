@@ -14,6 +14,8 @@
 
 namespace softshock {
 
+struct RunState;  // run_state.hpp: a run's restart state
+
 // Time series sampled every history interval (SoA; one entry per sample).
 struct History {
   std::vector<double> time;                          // s
@@ -153,6 +155,18 @@ struct RunControl {
   std::function<FieldFrame()> spare_frame;
   // Checked every step; when set the run stops with kCancelled.
   const std::atomic<bool>* cancel = nullptr;
+  // Checkpoints (run_state.hpp). checkpoint_due is asked after every step (keep it cheap: a clock
+  // read); when it says yes, on_checkpoint gets the state at the end of that step. With
+  // checkpoint_at_stop, on_checkpoint also gets the state where the loop stopped
+  // (RunState::stopped: the end time or a cancellation; not a failure), before the final sample and
+  // frame.
+  std::function<bool(const Progress&)> checkpoint_due;
+  std::function<void(const RunState&)> on_checkpoint;
+  bool checkpoint_at_stop = false;
+  // Continue from this state (taken from a run of the same problem and options, but for a later
+  // or equal end time) instead of starting at t = 0. Throws std::invalid_argument when it does
+  // not fit the problem (sizes, dimension, thread count, a missing array).
+  const RunState* resume = nullptr;
 };
 
 // Runs the problem to options.end_time_s. Never throws for physical failures (element

@@ -14,6 +14,7 @@
 #include <optional>
 #include <utility>
 
+#include "server/jobs/job_checkpoint.hpp"
 #include "server/jobs/mesh_process.hpp"
 #include "server/log.hpp"
 #include "server/store/resource_exhausted.hpp"
@@ -288,6 +289,8 @@ void JobRunner::remove_stale_files(const std::string& id) const {
       fs::remove(entry.path(), ec);
     }
   }
+  // A checkpoint half-written when the process died (the last whole one stays).
+  fs::remove(fs::path(checkpoint_dir(dir.string())) / "state.ckpt.tmp", ec);
 }
 
 std::string JobRunner::link_result(const std::string& source_result_path,
@@ -452,6 +455,9 @@ void JobRunner::run_job(const std::string& id, CancelToken& cancel) {
     return;
   }
   std::unique_ptr<AsyncResultWriter> writer;
+  const std::string spec_json = spec_to_json(spec);
+  // An earlier attempt's last checkpoint, when this run can continue from it.
+  std::optional<Checkpoint> resume;
   try {
     std::error_code ec;
     fs::create_directories(dir, ec);
@@ -459,8 +465,26 @@ void JobRunner::run_job(const std::string& id, CancelToken& cancel) {
     // A previous attempt's files (interrupted, or a partial result) are superseded.
     for (const char* name : {"result.h5", "result.xdmf"}) fs::remove(fs::path(dir) / name, ec);
     remove_stale_files(id);
-    writer = std::make_unique<AsyncResultWriter>(dir, problem.mesh, spec_to_json(spec),
-                                                 SOFTSHOCK_VERSION);
+    std::string why_not;
+    resume = load_job_checkpoint(dir, spec_json, problem.mesh, options.threads, &why_not);
+    if (!why_not.empty()) log_warning("job ", id, ": checkpoint not used: ", why_not);
+    if (resume) {
+      try {
+        writer = std::make_unique<AsyncResultWriter>(
+            dir, problem.mesh, spec_json, SOFTSHOCK_VERSION, sealed_frames(dir, resume->header),
+            resume->header.frame_times);
+        log_info("job ", id,
+                 " continues from its checkpoint at t = ", seconds(resume->state.time_s), ", step ",
+                 resume->state.steps);
+      } catch (const std::exception& e) {
+        log_warning("job ", id, ": checkpoint not used: ", e.what());
+        resume.reset();
+      }
+    }
+    if (!resume) {
+      remove_job_checkpoint(dir);  // runs from t = 0: an older checkpoint's files go
+      writer = std::make_unique<AsyncResultWriter>(dir, problem.mesh, spec_json, SOFTSHOCK_VERSION);
+    }
   } catch (const std::exception& e) {
     finish(JobState::kFailed, reason::kInternal, std::string("result file: ") + e.what(), "",
            nullptr);
@@ -507,18 +531,37 @@ void JobRunner::run_job(const std::string& id, CancelToken& cancel) {
     }
   };
   control.spare_frame = [&] { return writer->spare_frame(); };
+  JobCheckpointer::Options checkpoints;
+  checkpoints.job_id = id;
+  checkpoints.job_dir = dir;
+  checkpoints.interval_s = config_.checkpoint_interval_s;
+  checkpoints.spec_json = spec_json;
+  checkpoints.mesh_fingerprint = mesh_fingerprint(problem.mesh);
+  checkpoints.min_free_bytes = config_.min_free_bytes;
+  checkpoints.free_bytes = [this] { return free_bytes(); };
+  JobCheckpointer checkpointer(std::move(checkpoints), *writer);
+  checkpointer.attach(control, cancel);
+  if (resume) control.resume = &resume->state;
 
   RunResult result;
   try {
     result = run_simulation(problem, options, control);
   } catch (const std::exception& e) {
+    writer.reset();  // removes the temporary file
+    remove_job_checkpoint(dir);
     finish(JobState::kFailed, reason::kInternal, std::string("solver: ") + e.what(), "", nullptr);
-    return;  // the writer's destructor removes the temporary file
+    return;
   }
 
   if (result.status == RunStatus::kCancelled && cancel.reason() == StopReason::kShutdown) {
-    // Not the job's fault: discard the partial file (writer destructor) and queue it again so
-    // the next daemon start completes it.
+    // Not the job's fault: queue it again so the next daemon start completes it, from the
+    // checkpoint taken where it stopped (made durable first). The partial file is discarded
+    // (writer destructor).
+    try {
+      writer->drain();
+    } catch (const std::exception& e) {
+      log_warning("job ", id, ": at shutdown: ", e.what());
+    }
     writer.reset();
     requeue(reason::kShutdown);
     return;
@@ -569,11 +612,15 @@ void JobRunner::run_job(const std::string& id, CancelToken& cancel) {
     }
   } catch (const std::exception& e) {
     // Without a durable file the run cannot count as a success.
+    writer.reset();
+    remove_job_checkpoint(dir);
     finish(JobState::kFailed, reason::kInternal, std::string("finishing results: ") + e.what(), "",
            nullptr);
     return;
   }
   const std::string path = fs::exists(writer->h5_path()) ? writer->h5_path() : std::string();
+  writer.reset();              // no checkpoint is being written any more
+  remove_job_checkpoint(dir);  // its frames are in the result now
   finish(state, why, error, path, stored ? &*stored : nullptr);
   if (!catalogue_.get(id)) {
     // Deleted while it ran: do not leave an orphan folder behind.

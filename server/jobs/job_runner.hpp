@@ -24,7 +24,10 @@ struct RunnerConfig {
   SpecLimits limits;
   int solver_threads = 1;      // element-loop threads per job (overrides run.threads)
   double max_wall_time_s = 0;  // 0 = no limit
-  AdmissionLimits admission;   // checked again at start, with the real mesh
+  // Wall time between a running job's checkpoints (jobs/job_checkpoint.hpp); 0 = none. A job
+  // started again continues from its last checkpoint either way.
+  double checkpoint_interval_s = 600;
+  AdmissionLimits admission;  // checked again at start, with the real mesh
   // Free space the data folder keeps for the catalogue and other jobs: a job does not start
   // unless its estimated result fits above it, and stops (DISK_FULL) before a frame would
   // eat into it.

@@ -1,5 +1,6 @@
 #include "solver/io/async_result_writer.hpp"
 
+#include <filesystem>
 #include <tuple>
 #include <utility>
 
@@ -77,7 +78,43 @@ AsyncResultWriter::AsyncResultWriter(const std::string& out_dir, const Mesh& mes
   worker_.submit([writer, copy] { writer->write_mesh(*copy); });
 }
 
+AsyncResultWriter::AsyncResultWriter(const std::string& out_dir, const Mesh& mesh,
+                                     const std::string& spec_json,
+                                     const std::string& solver_version,
+                                     const std::vector<ResultWriter::Sealed>& sealed,
+                                     const std::vector<double>& frame_times,
+                                     std::size_t max_queued_frames)
+    : writer_(std::make_unique<ResultWriter>(out_dir, mesh, spec_json, solver_version, sealed,
+                                             frame_times)),
+      h5_path_(writer_->h5_path()),
+      worker_(max_queued_frames) {}
+
 AsyncResultWriter::~AsyncResultWriter() = default;
+
+void AsyncResultWriter::checkpoint(Checkpoint checkpoint, std::string segment_path,
+                                   std::string checkpoint_path,
+                                   std::function<void(const std::string& error)> done) {
+  auto owned = std::make_shared<Checkpoint>(std::move(checkpoint));
+  worker_.submit([this, owned, segment = std::move(segment_path), path = std::move(checkpoint_path),
+                  done = std::move(done)] {
+    writer_->seal_segment(segment);  // throws: the result file's error
+    std::string error;
+    try {
+      namespace fs = std::filesystem;
+      const fs::path folder = fs::absolute(path).parent_path();
+      auto& header = owned->header;
+      header.segments.clear();
+      for (const auto& s : writer_->sealed())
+        header.segments.push_back(
+            {fs::absolute(s.path).lexically_relative(folder).string(), s.frames});
+      header.frame_times = writer_->frame_times();
+      write_checkpoint(path, *owned);
+    } catch (const std::exception& e) {
+      error = e.what();
+    }
+    if (done) done(error);
+  });
+}
 
 void AsyncResultWriter::write_frame(FieldFrame frame) {
   // std::function needs a copyable callable: the frame travels in a shared_ptr. Once written it

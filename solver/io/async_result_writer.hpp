@@ -22,6 +22,7 @@
 #include <thread>
 #include <vector>
 
+#include "solver/io/checkpoint_file.hpp"
 #include "solver/io/result_file.hpp"
 
 namespace softshock {
@@ -63,6 +64,12 @@ class AsyncResultWriter {
   // or finish(), as a frame's would).
   AsyncResultWriter(const std::string& out_dir, const Mesh& mesh, const std::string& spec_json,
                     const std::string& solver_version, std::size_t max_queued_frames = 4);
+  // A run continued from a checkpoint (ResultWriter's continuation constructor, on the calling
+  // thread: a missing or damaged sealed file throws here).
+  AsyncResultWriter(const std::string& out_dir, const Mesh& mesh, const std::string& spec_json,
+                    const std::string& solver_version,
+                    const std::vector<ResultWriter::Sealed>& sealed,
+                    const std::vector<double>& frame_times, std::size_t max_queued_frames = 4);
   ~AsyncResultWriter();
   AsyncResultWriter(const AsyncResultWriter&) = delete;
   AsyncResultWriter& operator=(const AsyncResultWriter&) = delete;
@@ -73,6 +80,18 @@ class AsyncResultWriter {
   // Writes history, summary and attributes after every queued frame, then makes the files
   // durable (ResultWriter::finish) and returns. Throws any write error.
   void finish(History history, RunSummary summary, bool complete, std::string error);
+
+  // A checkpoint, on the writer thread after every frame queued before it: the frames so far are
+  // sealed into `segment_path` (ResultWriter::seal_segment), then `checkpoint`, its header's
+  // segments (named relative to the checkpoint's folder) and frame times filled in, is written to
+  // `checkpoint_path` (checkpoint_file.hpp). `done` gets the outcome there: empty, or why the
+  // checkpoint was not written -- which leaves the previous one in force and the run going. An
+  // error sealing the frames is the result file's: thrown by the next write_frame() or finish().
+  void checkpoint(Checkpoint checkpoint, std::string segment_path, std::string checkpoint_path,
+                  std::function<void(const std::string& error)> done);
+  // Waits until every task queued so far has run (a checkpoint before the writer goes away).
+  // Throws a write error.
+  void drain() { worker_.drain(); }
 
   // A frame already written, for the solver to fill again in place (RunControl::spare_frame),
   // or an empty frame when none is free. At most kSpareFrames are kept.

@@ -23,12 +23,30 @@ class ResultWriter {
   enum class MeshWrite { kNow, kLater };
   ResultWriter(const std::string& out_dir, const Mesh& mesh, const std::string& spec_json,
                const std::string& solver_version, MeshWrite when = MeshWrite::kNow);
+  // A run continued from a checkpoint: its frames so far are in sealed files (seal_segment; the
+  // first one holds /mesh), the frames to come go to a new temporary file, and finish() copies
+  // the sealed mesh and frames in. Each sealed file is opened and its frames checked now
+  // (std::runtime_error if one is missing or unreadable).
+  struct Sealed {
+    std::string path;        // an HDF5 file of this run's layout
+    std::size_t frames = 0;  // its frames, numbered on from the previous file's
+  };
+  ResultWriter(const std::string& out_dir, const Mesh& mesh, const std::string& spec_json,
+               const std::string& solver_version, const std::vector<Sealed>& sealed,
+               const std::vector<double>& frame_times);
   ~ResultWriter();  // without finish(): closes and removes the temporary file
   ResultWriter(const ResultWriter&) = delete;
   ResultWriter& operator=(const ResultWriter&) = delete;
 
   void write_mesh(const Mesh& mesh);          // MeshWrite::kLater: /mesh, once
   void write_frame(const FieldFrame& frame);  // /fields/frame_00000, _00001, ...
+  // For a checkpoint: closes the temporary file with the frames written since the last seal (and
+  // the mesh, the first time), makes it durable under `path` (a name on the same filesystem,
+  // not this folder's result.h5) and opens a new temporary file for the frames to come. What is
+  // sealed is never written again: finish() copies it into the result.
+  void seal_segment(const std::string& path);
+  const std::vector<Sealed>& sealed() const;
+  const std::vector<double>& frame_times() const;  // s, every frame so far, sealed or not
   // Writes /timeseries, /modes, root attributes (run statistics, summary JSON, `complete`,
   // `error`), then makes the files durable under their final names.
   void finish(const History& history, const RunSummary& summary, bool complete,

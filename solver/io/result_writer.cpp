@@ -214,7 +214,13 @@ struct ResultWriter::Impl {
   std::string tmp_name;  // tmp_h5 as a string, for messages
   int dimension = 2;     // the mesh's: 2 (triangles) or 3 (tetrahedra)
   std::size_t nodes = 0, elements = 0;
-  Hid file, fields;  // open from construction until finish() closes them
+  Hid file, fields;                       // open from construction until finish() closes them
+  std::string spec_json, solver_version;  // the root attributes of every file it starts
+  // Checkpoints: files sealed so far, in order (the first holds /mesh when mesh_in_file is
+  // false), and the index of the first frame of the open file.
+  std::vector<ResultWriter::Sealed> sealed;
+  std::size_t first_frame = 0;
+  bool mesh_in_file = false;
   std::vector<std::string> frame_groups;
   std::vector<double> frame_times;
   std::vector<double> xyz;  // 2-D: a node vector padded with z = 0, reused across frames
@@ -229,6 +235,37 @@ struct ResultWriter::Impl {
     std::error_code ignored;
     fs::remove(tmp_h5, ignored);
   }
+
+  // Creates the temporary file with its root attributes and /fields (HDF5 lock held).
+  void create_file() {
+    const std::string& path = tmp_name;
+    Hid fapl = file_access_plist(path);
+    // H5F_ACC_TRUNC: a .tmp left by a crashed earlier attempt is simply overwritten.
+    file = checked(H5Fcreate(path.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, fapl.get()), "create file",
+                   path);
+    const hid_t root = file.get();
+    write_string_attr(root, "spec", spec_json, path);
+    write_string_attr(root, "solver_version", solver_version, path);
+    write_int_attr(root, "format_version", kFormatVersion, H5T_STD_I32LE, path);
+    // Readers pick the layout by it (absent in files written before 3-D: those are 2-D).
+    write_int_attr(root, "dimension", dimension, H5T_STD_I32LE, path);
+    write_int_attr(root, "complete", 0, H5T_STD_I32LE, path);
+    write_string_attr(root, "error", "", path);
+    fields = create_group(root, "fields", path, false);
+  }
+
+  // Flushes and closes the open file, reporting the final metadata writes (HDF5 lock held).
+  void close_file() {
+    fields.reset();
+    checked(H5Fflush(file.get(), H5F_SCOPE_GLOBAL), "flush file", tmp_name);
+    // H5Fclose rather than the generic close: its status reports the final metadata writes.
+    // The identifier is gone whether or not it succeeded.
+    if (H5Fclose(file.release()) < 0) fail("close file", tmp_name);
+  }
+
+  // finish(): the sealed files' mesh (unless the open file has it) and frames, into the open
+  // file, one frame per hold of the HDF5 lock so that other runs' writers interleave.
+  void copy_sealed();
 
   void check_usable(const char* op) const {
     if (finished) throw std::logic_error(std::string("ResultWriter::") + op + " after finish()");
@@ -278,23 +315,12 @@ ResultWriter::ResultWriter(const std::string& out_dir, const Mesh& mesh,
   m.nodes = mesh.node_count();
   m.elements = mesh.element_count();
 
-  const std::string& path = m.tmp_name;
+  m.spec_json = spec_json;
+  m.solver_version = solver_version;
   {
     auto lock = lock_hdf5();
     try {
-      Hid fapl = file_access_plist(path);
-      // H5F_ACC_TRUNC: a .tmp left by a crashed earlier attempt is simply overwritten.
-      m.file = checked(H5Fcreate(path.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, fapl.get()),
-                       "create file", path);
-      const hid_t root = m.file.get();
-      write_string_attr(root, "spec", spec_json, path);
-      write_string_attr(root, "solver_version", solver_version, path);
-      write_int_attr(root, "format_version", kFormatVersion, H5T_STD_I32LE, path);
-      // Readers pick the layout by it (absent in files written before 3-D: those are 2-D).
-      write_int_attr(root, "dimension", m.dimension, H5T_STD_I32LE, path);
-      write_int_attr(root, "complete", 0, H5T_STD_I32LE, path);
-      write_string_attr(root, "error", "", path);
-      m.fields = create_group(root, "fields", path, false);
+      m.create_file();
     } catch (...) {
       m.discard_file();
       throw;
@@ -308,6 +334,55 @@ ResultWriter::ResultWriter(const std::string& out_dir, const Mesh& mesh,
       m.discard_file();
       throw;
     }
+  }
+}
+
+ResultWriter::ResultWriter(const std::string& out_dir, const Mesh& mesh,
+                           const std::string& spec_json, const std::string& solver_version,
+                           const std::vector<Sealed>& sealed,
+                           const std::vector<double>& frame_times)
+    : ResultWriter(out_dir, mesh, spec_json, solver_version, MeshWrite::kLater) {
+  Impl& m = *impl_;
+  try {
+    std::size_t frames = 0;
+    for (const Sealed& s : sealed) frames += s.frames;
+    if (frames != frame_times.size()) {
+      throw std::invalid_argument("ResultWriter: " + std::to_string(frames) +
+                                  " sealed frames but " + std::to_string(frame_times.size()) +
+                                  " frame times");
+    }
+    // Every sealed frame must be there with its time, and the mesh in the first file.
+    std::size_t k = 0;
+    for (const Sealed& s : sealed) {
+      auto lock = lock_hdf5();
+      Hid fapl = file_access_plist(s.path);
+      Hid f = checked(H5Fopen(s.path.c_str(), H5F_ACC_RDONLY, fapl.get()), "open sealed frames",
+                      s.path);
+      if (k == 0 && H5Lexists(f.get(), "mesh", H5P_DEFAULT) <= 0)
+        throw std::runtime_error("sealed frames " + s.path + " have no /mesh");
+      for (std::size_t end = k + s.frames; k < end; ++k) {
+        const std::string name = "fields/" + frame_group_name(k);
+        Hid g = checked(H5Gopen2(f.get(), name.c_str(), H5P_DEFAULT), "open " + name, s.path);
+        Hid a = checked(H5Aopen(g.get(), "time", H5P_DEFAULT), "open time of " + name, s.path);
+        double t = 0;
+        checked(H5Aread(a.get(), H5T_NATIVE_DOUBLE, &t), "read time of " + name, s.path);
+        if (std::memcmp(&t, &frame_times[k], sizeof t) != 0)
+          throw std::runtime_error("sealed frames " + s.path + ": " + name + " is of another time");
+        m.frame_groups.push_back("/fields/" + frame_group_name(k));
+      }
+    }
+  } catch (...) {
+    auto lock = lock_hdf5();
+    m.discard_file();
+    throw;
+  }
+  m.sealed = sealed;
+  m.frame_times = frame_times;
+  m.first_frame = m.frame_groups.size();
+  if (sealed.empty()) {
+    write_mesh(mesh);
+  } else {
+    m.mesh_written = true;  // in the first sealed file, copied in by finish()
   }
 }
 
@@ -352,6 +427,7 @@ void ResultWriter::write_mesh(const Mesh& mesh) {
     throw;
   }
   m.mesh_written = true;
+  m.mesh_in_file = true;
 }
 
 ResultWriter::~ResultWriter() {
@@ -427,6 +503,68 @@ void ResultWriter::write_frame(const FieldFrame& frame) {
   write_back(m.tmp_h5);
 }
 
+void ResultWriter::seal_segment(const std::string& path) {
+  Impl& m = *impl_;
+  m.check_usable("seal_segment");
+  if (!m.mesh_written) throw std::logic_error("ResultWriter::seal_segment before write_mesh()");
+  const fs::path target(path);
+  if (target == m.final_h5 || target == m.tmp_h5)
+    throw std::invalid_argument("ResultWriter::seal_segment: not a name of its own");
+  // Nothing new since the last seal: the sealed files already hold every frame.
+  if (!m.sealed.empty() && m.frame_groups.size() == m.first_frame) return;
+  try {
+    {
+      auto lock = lock_hdf5();
+      m.close_file();
+    }
+    fsync_path(m.tmp_h5, false);
+    rename_file(m.tmp_h5, target);
+    const fs::path folder = target.has_parent_path() ? target.parent_path() : fs::path(".");
+    fsync_path(folder, true);
+    if (fs::absolute(folder) != fs::absolute(m.dir)) fsync_path(m.dir, true);
+    m.sealed.push_back({target.string(), m.frame_groups.size() - m.first_frame});
+    m.first_frame = m.frame_groups.size();
+    m.mesh_in_file = false;
+    auto lock = lock_hdf5();
+    m.create_file();
+  } catch (const std::exception& e) {
+    m.broken = std::string("sealing frames: ") + e.what();
+    throw;
+  }
+}
+
+const std::vector<ResultWriter::Sealed>& ResultWriter::sealed() const {
+  return impl_->sealed;
+}
+
+const std::vector<double>& ResultWriter::frame_times() const {
+  return impl_->frame_times;
+}
+
+void ResultWriter::Impl::copy_sealed() {
+  std::size_t k = 0;
+  for (std::size_t i = 0; i < sealed.size(); ++i) {
+    const std::string& from = sealed[i].path;
+    auto lock = lock_hdf5();
+    Hid fapl = file_access_plist(from);
+    Hid src =
+        checked(H5Fopen(from.c_str(), H5F_ACC_RDONLY, fapl.get()), "open sealed frames", from);
+    if (i == 0 && !mesh_in_file) {
+      checked(H5Ocopy(src.get(), "mesh", file.get(), "mesh", H5P_DEFAULT, H5P_DEFAULT),
+              "copy /mesh from " + from + " into", tmp_name);
+      mesh_in_file = true;
+    }
+    for (std::size_t end = k + sealed[i].frames; k < end; ++k) {
+      lock.unlock();  // between frames: other runs' files take their turn
+      lock.lock();
+      const std::string name = frame_group_name(k);
+      checked(H5Ocopy(src.get(), ("fields/" + name).c_str(), fields.get(), name.c_str(),
+                      H5P_DEFAULT, H5P_DEFAULT),
+              "copy frame " + name + " from " + from + " into", tmp_name);
+    }
+  }
+}
+
 void ResultWriter::finish(const History& history, const RunSummary& summary, bool complete,
                           const std::string& error) {
   Impl& m = *impl_;
@@ -472,6 +610,7 @@ void ResultWriter::finish(const History& history, const RunSummary& summary, boo
 
   const std::string& path = m.tmp_name;
   try {
+    m.copy_sealed();
     {
       auto lock = lock_hdf5();
       const hid_t root = m.file.get();
@@ -501,11 +640,7 @@ void ResultWriter::finish(const History& history, const RunSummary& summary, boo
 
       ts.reset();
       modes.reset();
-      m.fields.reset();
-      checked(H5Fflush(root, H5F_SCOPE_GLOBAL), "flush file", path);
-      // H5Fclose rather than the generic close: its status reports the final metadata writes.
-      // The identifier is gone whether or not it succeeded.
-      if (H5Fclose(m.file.release()) < 0) fail("close file", path);
+      m.close_file();
     }
     // Data on disk before the name: after a crash result.h5 is either absent or whole.
     fsync_path(m.tmp_h5, false);
