@@ -33,8 +33,6 @@ template <class Visit>
 void visit_element_state(Tet4State& s, Visit& visit) {
   visit("element.f", s.f.data(), s.f.size());
   visit("element.pv", s.pv.data(), s.pv.size());
-  visit("element.viscosity", s.viscosity.data(), s.viscosity.size());
-  visit("element.bulk_viscosity", s.bulk_viscosity.data(), s.bulk_viscosity.size());
 }
 
 const StateArray* find_array(const std::vector<StateArray>& arrays, const char* name) {
