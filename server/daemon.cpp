@@ -28,6 +28,7 @@
 #include "server/transport/health_warnings.hpp"
 #include "server/transport/mesh_service.hpp"
 #include "server/transport/simulation_service.hpp"
+#include "softshock/version.hpp"
 
 namespace softshock::server {
 
