@@ -28,13 +28,14 @@ std::vector<std::string> ParsedArgs::all(const std::string& name) const {
   return it == values_.end() ? std::vector<std::string>{} : it->second;
 }
 
-ParsedArgs parse_options(const std::vector<std::string>& args,
-                         const std::vector<OptionSpec>& specs) {
+ParsedArgs parse_options(const std::vector<std::string>& args, const std::vector<OptionSpec>& specs,
+                         bool single_dash_words) {
   ParsedArgs parsed;
   bool options_ended = false;
   for (std::size_t i = 0; i < args.size(); ++i) {
     const std::string& arg = args[i];
-    if (options_ended || arg == "-" || arg.size() < 2 || arg[0] != '-') {
+    if (options_ended || arg == "-" || arg.size() < 2 || arg[0] != '-' ||
+        (single_dash_words && arg[1] != '-')) {
       parsed.positional.push_back(arg);
       continue;
     }

@@ -54,9 +54,9 @@ class ParsedArgs {
 
 // Parses args (after the command word) against specs. Accepts "--name value", "--name=value",
 // and "--" to end options; anything else starting with "-" (except "-" alone, meaning stdin)
-// is a usage error.
-ParsedArgs parse_options(const std::vector<std::string>& args,
-                         const std::vector<OptionSpec>& specs);
+// is a usage error, unless single_dash_words makes "-word" a positional argument.
+ParsedArgs parse_options(const std::vector<std::string>& args, const std::vector<OptionSpec>& specs,
+                         bool single_dash_words = false);
 
 // Value parsers: each throws a usage error naming the option on bad input.
 int64_t parse_int(const std::string& option, const std::string& text);

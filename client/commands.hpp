@@ -29,7 +29,7 @@ struct Command {
 int cmd_submit(const GlobalOptions& g, const ParsedArgs& a);
 int cmd_status(const GlobalOptions& g, const ParsedArgs& a);
 int cmd_watch(const GlobalOptions& g, const ParsedArgs& a);
-int cmd_list(const GlobalOptions& g, const ParsedArgs& a);
+int cmd_list(const GlobalOptions& g, const ParsedArgs& a);  // commands_accounting.cpp
 int cmd_cancel(const GlobalOptions& g, const ParsedArgs& a);
 int cmd_delete(const GlobalOptions& g, const ParsedArgs& a);
 int cmd_summary(const GlobalOptions& g, const ParsedArgs& a);
@@ -43,6 +43,16 @@ std::string owner_filter(Connection& conn, const ParsedArgs& a);
 int cmd_modes(const GlobalOptions& g, const ParsedArgs& a);
 int cmd_series(const GlobalOptions& g, const ParsedArgs& a);
 int cmd_field(const GlobalOptions& g, const ParsedArgs& a);
+// A-bar(t) of the jobs in one PNG (the plotting helper), every k-th sample (0 = all).
+void write_abar_png(Connection& conn, const std::vector<std::string>& ids, int32_t every,
+                    const std::string& png);
+
+// Result files brought to this machine (commands_fetch.cpp).
+int cmd_fetch(const GlobalOptions& g, const ParsedArgs& a);
+
+// Accounting and comparison (commands_accounting.cpp, commands_compare.cpp).
+int cmd_label(const GlobalOptions& g, const ParsedArgs& a);
+int cmd_diff(const GlobalOptions& g, const ParsedArgs& a);
 
 // Uploaded meshes (commands_meshes.cpp).
 int cmd_mesh(const GlobalOptions& g, const ParsedArgs& a);

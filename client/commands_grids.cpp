@@ -12,6 +12,7 @@
 #include "client/commands.hpp"
 #include "client/format.hpp"
 #include "client/plot_helper.hpp"
+#include "client/spec_diagnostics.hpp"
 
 namespace softshock::cli {
 
@@ -108,8 +109,11 @@ int grid_submit(const GlobalOptions& g, const ParsedArgs& a) {
   google::protobuf::util::JsonParseOptions parse;
   parse.ignore_unknown_fields = false;  // a misspelt field must not silently become a default
   auto st = google::protobuf::util::JsonStringToMessage(text, &request, parse);
-  if (!st.ok())
-    usage_error(path + ": not a valid grid (SubmitGridRequest JSON): " + std::string(st.message()));
+  if (!st.ok()) {
+    const auto why = explain_json_error(text, v1::SubmitGridRequest::descriptor());
+    usage_error(path + ": not a valid grid (SubmitGridRequest JSON): " +
+                why.value_or(std::string(st.message())));
+  }
   for (const auto& l : a.all("label")) {
     auto [k, v] = parse_label("label", l);
     (*request.mutable_labels())[k] = v;
@@ -383,7 +387,7 @@ int cmd_query(const GlobalOptions& g, const ParsedArgs& a) {
                                            "max_abar_first_cycle",
                                            "max_abar",
                                            "dominant_mode_end",
-                                           "energy_injected",
+                                           "energy_injected_J_per_m",
                                            "grid_id",
                                            "grid_index",
                                            "reused_from",
@@ -400,7 +404,7 @@ int cmd_query(const GlobalOptions& g, const ParsedArgs& a) {
          has ? num(s.max_abar_first_cycle()) : (csv ? "" : "-"),
          has ? num(s.max_abar()) : (csv ? "" : "-"),
          has ? std::to_string(s.dominant_mode_end()) : (csv ? "" : "-"),
-         has ? num(s.energy_injected()) : (csv ? "" : "-"),
+         has ? num(s.energy_injected_j_per_m()) : (csv ? "" : "-"),
          q.job().grid_id().empty() ? (csv ? "" : "-") : q.job().grid_id(),
          q.job().grid_id().empty() ? (csv ? "" : "-") : std::to_string(q.job().grid_index()),
          q.job().reused_from().empty() ? (csv ? "" : "-") : q.job().reused_from(),

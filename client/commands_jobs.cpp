@@ -10,6 +10,7 @@
 
 #include "client/commands.hpp"
 #include "client/format.hpp"
+#include "client/spec_diagnostics.hpp"
 
 namespace softshock::cli {
 
@@ -22,16 +23,6 @@ int32_t parse_int32(const std::string& option, const std::string& text, int32_t 
                 std::to_string(INT32_MAX));
   }
   return static_cast<int32_t>(v);
-}
-
-std::string join_labels(const google::protobuf::Map<std::string, std::string>& labels) {
-  // Sorted, so the output is stable (protobuf maps have no order).
-  std::vector<std::string> items;
-  for (const auto& [k, v] : labels) items.push_back(k + "=" + v);
-  std::sort(items.begin(), items.end());
-  std::string out;
-  for (const auto& s : items) out += (out.empty() ? "" : ",") + s;
-  return out;
 }
 
 std::string describe_geometry(const v1::RunSpec& spec) {
@@ -85,17 +76,6 @@ void print_job(const v1::Job& job) {
   if (!job.request_id().empty()) kv.add("request id", job.request_id());
   if (!job.spec_hash().empty()) kv.add("spec hash", job.spec_hash());
   kv.print(stdout);
-}
-
-v1::JobState parse_state(const std::string& text) {
-  std::string upper;
-  for (char c : text) upper += static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
-  v1::JobState state;
-  if (!v1::JobState_Parse(upper, &state) || state == v1::JOB_STATE_UNSPECIFIED) {
-    usage_error("--state: unknown state '" + text +
-                "' (QUEUED, RUNNING, SUCCEEDED, FAILED, CANCELLED)");
-  }
-  return state;
 }
 
 const std::string& single_id(const ParsedArgs& a) {
@@ -180,7 +160,9 @@ int cmd_submit(const GlobalOptions& g, const ParsedArgs& a) {
   parse.ignore_unknown_fields = false;  // a misspelt field must not silently become a default
   auto st = google::protobuf::util::JsonStringToMessage(text, request.mutable_spec(), parse);
   if (!st.ok()) {
-    usage_error(path + ": not a valid run spec: " + std::string(st.message()));
+    // Protobuf's parser says "Cannot find field." or "TYPE_DOUBLE"; the schema says more.
+    const auto why = explain_json_error(text, v1::RunSpec::descriptor());
+    usage_error(path + ": not a valid run spec: " + why.value_or(std::string(st.message())));
   }
 
   Connection conn(g);
@@ -215,47 +197,6 @@ int cmd_status(const GlobalOptions& g, const ParsedArgs& a) {
 int cmd_watch(const GlobalOptions& g, const ParsedArgs& a) {
   Connection conn(g);
   return exit_for_final_state(watch_until_done(conn, single_id(a), g.json));
-}
-
-int cmd_list(const GlobalOptions& g, const ParsedArgs& a) {
-  v1::ListJobsRequest request;
-  if (auto s = a.get("state")) request.set_state(parse_state(*s));
-  auto labels = a.all("label");
-  if (labels.size() > 1) usage_error("--label: the server filters on one label at a time");
-  if (!labels.empty()) {
-    auto [k, v] = parse_label("label", labels[0]);
-    request.set_label(k + "=" + v);
-  }
-  int64_t limit = 100;
-  if (auto l = a.get("limit")) limit = parse_int("limit", *l);
-  if (limit < 0) usage_error("--limit: must be >= 0 (0 = no limit)");
-
-  Connection conn(g);
-  request.set_owner(owner_filter(conn, a));
-  const auto all = collect_pages<v1::ListJobsRequest, v1::ListJobsResponse>(
-      conn, request, limit,
-      [&](grpc::ClientContext& ctx, const v1::ListJobsRequest& r, v1::ListJobsResponse& page) {
-        return conn.service().ListJobs(&ctx, r, &page);
-      },
-      [](v1::ListJobsResponse& r) { return r.mutable_jobs(); });
-  if (g.json) {
-    std::printf("%s\n", to_json(all).c_str());
-    return kExitOk;
-  }
-  std::vector<std::vector<std::string>> rows;
-  for (const auto& job : all.jobs()) {
-    std::string when = fmt_timestamp(job.create_time());
-    rows.push_back({job.id(), state_name(job.state()),
-                    fmt_num(job.progress().fraction() * 100.0, 3) + "%",
-                    job.owner().empty() ? "-" : job.owner(), when,
-                    job.labels().empty() ? "-" : join_labels(job.labels())});
-  }
-  print_table(stdout, {"ID", "STATE", "PROGRESS", "OWNER", "CREATED", "LABELS"}, rows);
-  if (!all.next_page_token().empty()) {
-    std::fprintf(stderr, "softshock: list: more jobs than --limit %lld; raise it to see them\n",
-                 static_cast<long long>(limit));
-  }
-  return kExitOk;
 }
 
 int cmd_cancel(const GlobalOptions& g, const ParsedArgs& a) {
@@ -300,7 +241,8 @@ int cmd_summary(const GlobalOptions& g, const ParsedArgs& a) {
   conn.unary(
       [&](grpc::ClientContext& ctx) { return conn.service().GetJobSummary(&ctx, request, &s); });
   if (g.json) {
-    std::printf("%s\n", to_json(s).c_str());
+    // By the proto's names, the ones softshock-solve prints (energy_injected_J_per_m, ...).
+    std::printf("%s\n", to_json(s, true, /*proto_names=*/true).c_str());
     return kExitOk;
   }
   const auto& n = s.groups();
@@ -309,43 +251,44 @@ int cmd_summary(const GlobalOptions& g, const ParsedArgs& a) {
   kv.add("elements", std::to_string(s.elements()));
   kv.add("nodes", std::to_string(s.nodes()));
   kv.add("steps", std::to_string(s.steps()));
-  kv.add("wall time", fmt_num(s.wall_time(), 4) + " s");
-  kv.add("simulated time", fmt_ns(s.end_time()));
+  kv.add("wall time", fmt_num(s.wall_time_s(), 4) + " s");
+  kv.add("simulated time", fmt_ns(s.end_time_s()));
   kv.add("solver revision", s.solver_revision() > 0 ? std::to_string(s.solver_revision())
                                                     : std::string("not recorded"));
-  if (s.steps() > 0 && s.elements() > 0 && s.wall_time() > 0) {
+  if (s.steps() > 0 && s.elements() > 0 && s.wall_time_s() > 0) {
     // Grind time, the figure explicit codes are compared by (LS-DYNA's "time per zone cycle"):
     // the whole run's and the element loop's alone, and the meshing share beside them, so the
     // user sees where the time went.
     kv.add("grind time",
-           fmt_num(s.wall_time() / (double(s.steps()) * double(s.elements())) * 1e9, 4) +
+           fmt_num(s.wall_time_s() / (double(s.steps()) * double(s.elements())) * 1e9, 4) +
                " ns per element-step");
-    if (s.kernel_time() > 0) {
+    if (s.kernel_time_s() > 0) {
       kv.add("kernel grind time",
-             fmt_num(s.kernel_time() / (double(s.steps()) * double(s.elements())) * 1e9, 4) +
+             fmt_num(s.kernel_time_s() / (double(s.steps()) * double(s.elements())) * 1e9, 4) +
                  " ns per element-step (element passes alone)");
     }
   }
-  if (s.wall_time() > 0 && (s.diagnostics_time() > 0 || s.output_time() > 0)) {
-    kv.add("diagnostics", fmt_num(s.diagnostics_time(), 3) + " s (" +
+  if (s.wall_time_s() > 0 && (s.diagnostics_time_s() > 0 || s.output_time_s() > 0)) {
+    kv.add("diagnostics", fmt_num(s.diagnostics_time_s(), 3) + " s (" +
                               fmt_num(100 * s.diagnostics_share(), 3) +
                               " % of the run: history samples and frame fields)");
-    kv.add("output", fmt_num(s.output_time(), 3) + " s (" + fmt_num(100 * s.output_share(), 3) +
+    kv.add("output", fmt_num(s.output_time_s(), 3) + " s (" + fmt_num(100 * s.output_share(), 3) +
                          " % of the run: frames handed to the writer thread)");
   }
   if (!s.mesh_cache().empty()) {
-    kv.add("meshing", fmt_num(s.meshing_time(), 3) + " s (" +
-                          fmt_num(100 * s.meshing_time() / (s.meshing_time() + s.wall_time()), 3) +
-                          " % of meshing + run; mesh cache: " + s.mesh_cache() + ")");
+    kv.add("meshing",
+           fmt_num(s.meshing_time_s(), 3) + " s (" +
+               fmt_num(100 * s.meshing_time_s() / (s.meshing_time_s() + s.wall_time_s()), 3) +
+               " % of meshing + run; mesh cache: " + s.mesh_cache() + ")");
   }
-  kv.add("time scale R0/c0", fmt_ns(n.time_scale()));
+  kv.add("time scale R0/c0", fmt_ns(n.time_scale_s()));
   kv.add("P-bar", fmt_num(n.pbar()));
   kv.add("t-bar pulse", fmt_num(n.tbar_pulse()));
   kv.add("mu-bar", fmt_num(n.mubar()));
   kv.add("gamma", fmt_num(n.gamma()));
   kv.add("C1, C2", fmt_num(n.c1()) + ", " + fmt_num(n.c2()));
-  kv.add("energy injected", fmt_num(s.energy_injected()) + " J/m");
-  kv.add("energy after pulse", fmt_num(s.energy_after_pulse()) + " J/m");
+  kv.add("energy injected", fmt_num(s.energy_injected_j_per_m()) + " J/m");
+  kv.add("energy after pulse", fmt_num(s.energy_after_pulse_j_per_m()) + " J/m");
   kv.add("max A-bar (t-bar <= 4)", fmt_num(s.max_abar_first_cycle()));
   kv.add("max A-bar", fmt_num(s.max_abar()));
   kv.add("A-bar at end", fmt_num(s.abar_end()));
@@ -355,15 +298,16 @@ int cmd_summary(const GlobalOptions& g, const ParsedArgs& a) {
              fmt_num(s.abar_filtered_end()));
   kv.add("max element aspect ratio",
          fmt_num(s.max_aspect_ratio()) +
-             (s.aspect_ratio_above_10() < 0
+             (s.aspect_ratio_above_10_s() < 0
                   ? " (never above 10)"
-                  : " (above 10 from " + fmt_ns(s.aspect_ratio_above_10()) + ")"));
+                  : " (above 10 from " + fmt_ns(s.aspect_ratio_above_10_s()) + ")"));
   kv.add("dominant mode at end", std::to_string(s.dominant_mode_end()));
-  kv.add("shock at centre", s.shock_at_center() < 0 ? "not detected" : fmt_ns(s.shock_at_center()));
+  kv.add("shock at centre",
+         s.shock_at_center_s() < 0 ? "not detected" : fmt_ns(s.shock_at_center_s()));
   std::string rims;
-  for (double t : s.rim_reflections()) rims += (rims.empty() ? "" : ", ") + fmt_num(t * 1e9, 5);
+  for (double t : s.rim_reflections_s()) rims += (rims.empty() ? "" : ", ") + fmt_num(t * 1e9, 5);
   kv.add("rim reflections", rims.empty() ? "none" : rims + " ns");
-  kv.add("dt range", fmt_num(s.min_dt() * 1e9, 4) + " .. " + fmt_ns(s.max_dt()));
+  kv.add("dt range", fmt_num(s.min_dt_s() * 1e9, 4) + " .. " + fmt_ns(s.max_dt_s()));
   kv.print(stdout);
   return kExitOk;
 }

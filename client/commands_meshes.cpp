@@ -88,6 +88,9 @@ int cmd_mesh(const GlobalOptions& g, const ParsedArgs& a) {
         [](v1::ListMeshesResponse& r) { return r.mutable_meshes(); });
     if (g.json) {
       std::printf("%s\n", to_json(all).c_str());
+    } else if (all.meshes().empty()) {
+      const std::string by = request.owner().empty() ? "" : " by " + request.owner();
+      std::printf("no meshes uploaded%s (softshock mesh upload FILE.msh)\n", by.c_str());
     } else {
       for (const auto& m : all.meshes()) print_mesh(m);
     }
@@ -102,6 +105,13 @@ int cmd_mesh(const GlobalOptions& g, const ParsedArgs& a) {
     conn.unary([&](grpc::ClientContext& ctx) {
       return conn.meshes().DeleteMesh(&ctx, request, &response);
     });
+    const std::string& given = a.positional[1];
+    const std::string name = given.rfind("meshes/", 0) == 0 ? given : "meshes/" + given;
+    if (g.json) {
+      std::printf("%s\n", to_json(response).c_str());
+    } else {
+      std::printf("deleted: %s\n", name.c_str());
+    }
     return kExitOk;
   }
   usage_error("mesh: unknown subcommand '" + sub + "' (upload, list, delete)");

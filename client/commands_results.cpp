@@ -60,19 +60,29 @@ double time_scale(Connection& conn, const std::string& id) {
   } catch (const CliError&) {
     return 0.0;
   }
-  return summary.groups().time_scale();
+  return summary.groups().time_scale_s();
 }
 
 // A-bar(t) of every job given, in one PNG (against t-bar when they share R0/c0).
 int series_png(const GlobalOptions& g, const ParsedArgs& a, const std::string& png) {
   if (a.has("csv") || a.has("name")) usage_error("--png plots A-bar(t): no --csv or --name");
+  const int32_t every = parse_every(a);
   Connection conn(g);
+  write_abar_png(conn, a.positional, every, png);
+  std::printf("wrote: %s\n", png.c_str());
+  return kExitOk;
+}
+
+}  // namespace
+
+void write_abar_png(Connection& conn, const std::vector<std::string>& ids, int32_t every,
+                    const std::string& png) {
   std::string series_json;
   double common_scale = -1;
-  for (const auto& id : a.positional) {
+  for (const auto& id : ids) {
     v1::GetTimeSeriesRequest request;
     request.set_id(id);
-    request.set_every(parse_every(a));
+    request.set_every(every);
     request.add_names("abar");
     v1::TimeSeries ts;
     conn.unary(
@@ -91,11 +101,7 @@ int series_png(const GlobalOptions& g, const ParsedArgs& a, const std::string& p
   write_text_file(json, "{\"series\":[" + series_json +
                             "],\"time_scale\":" + fmt_exact(std::max(0.0, common_scale)) + "}");
   run_python_plot({"abar", "--json=" + json, "--out=" + png});
-  std::printf("wrote: %s\n", png.c_str());
-  return kExitOk;
 }
-
-}  // namespace
 
 int cmd_modes(const GlobalOptions& g, const ParsedArgs& a) {
   v1::GetModesRequest request;

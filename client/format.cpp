@@ -73,9 +73,10 @@ bool is_terminal(int state) {
   return state == v1::SUCCEEDED || state == v1::FAILED || state == v1::CANCELLED;
 }
 
-std::string to_json(const google::protobuf::Message& message, bool pretty) {
+std::string to_json(const google::protobuf::Message& message, bool pretty, bool proto_names) {
   google::protobuf::util::JsonPrintOptions options;
   options.add_whitespace = pretty;
+  options.preserve_proto_field_names = proto_names;
   options.always_print_primitive_fields = true;
   std::string out;
   auto status = google::protobuf::util::MessageToJsonString(message, &out, options);
@@ -129,6 +130,15 @@ void print_table(std::FILE* out, const std::vector<std::string>& header,
   for (const auto& row : rows) line(row);
 }
 
+std::string join_labels(const google::protobuf::Map<std::string, std::string>& labels) {
+  std::vector<std::string> items;
+  for (const auto& [k, v] : labels) items.push_back(k + "=" + v);
+  std::sort(items.begin(), items.end());
+  std::string out;
+  for (const auto& s : items) out += (out.empty() ? "" : ",") + s;
+  return out;
+}
+
 std::string csv_escape(const std::string& field) {
   if (field.find_first_of(",\"\n\r") == std::string::npos) return field;
   std::string out = "\"";
@@ -165,30 +175,57 @@ double elapsed_seconds(const v1::Job& job, std::chrono::system_clock::time_point
   return now - std::chrono::duration<double>(watch_start.time_since_epoch()).count();
 }
 
+// Seconds left at the rate so far (elapsed / fraction done), once there is a rate to go by;
+// negative when unknown.
+double eta_seconds(const v1::Job& job, double elapsed) {
+  const double fraction = job.progress().fraction();
+  if (job.state() != v1::RUNNING || fraction < 0.005 || fraction >= 1 || elapsed < 0.5) return -1;
+  return elapsed * (1 - fraction) / fraction;
+}
+
 }  // namespace
 
 std::string ProgressDisplay::describe(const v1::Job& job, bool with_bar) const {
   const auto& p = job.progress();
-  double fraction = std::clamp(p.fraction(), 0.0, 1.0);
-  std::string text = state_name(job.state());
-  char buf[256];
-  std::snprintf(buf, sizeof buf, "  %5.1f%%  t = %s / %s  %lld steps  elapsed %s", fraction * 100.0,
+  const double fraction = std::clamp(p.fraction(), 0.0, 1.0);
+  const double elapsed = elapsed_seconds(job, watch_start_);
+  const double eta = eta_seconds(job, elapsed);
+  const std::string eta_text =
+      eta >= 0 ? fmt_duration(eta) : (job.state() == v1::SUCCEEDED ? "0 s" : "-");
+  char done[64];
+  std::snprintf(done, sizeof done, "%5.1f%%  t = %s / %s", fraction * 100.0,
                 fmt_num(p.simulated_time() * 1e9, 4).c_str(),
-                fmt_ns(job.spec().run().end_time()).c_str(), static_cast<long long>(p.steps()),
-                fmt_duration(elapsed_seconds(job, watch_start_)).c_str());
-  std::string figures = buf;
-  if (!with_bar) return job.id() + "  " + text + figures;
-  // The bar takes whatever width the figures leave, so the line never wraps (a wrapped line
-  // breaks the carriage-return redraw).
-  int bar = terminal_width(out_) - 1 - static_cast<int>(text.size() + figures.size()) - 4;
-  bar = std::clamp(bar, 0, 50);
-  if (bar >= 10) {
-    int filled = static_cast<int>(std::lround(fraction * bar));
-    std::string b(static_cast<std::size_t>(filled), '#');
-    b.append(static_cast<std::size_t>(bar - filled), '.');
-    text += "  [" + b + "]";
+                fmt_ns(job.spec().run().end_time()).c_str());
+  const std::string steps = std::to_string(p.steps()) + " steps";
+  if (!with_bar) {
+    return job.id() + "  " + state_name(job.state()) + "  " + done + "  " + steps + "  elapsed " +
+           fmt_duration(elapsed) + "  ETA " + eta_text;
   }
-  return text + figures;
+  // On a terminal the line is redrawn in place: every field has a fixed width, so the bar keeps
+  // its place and its width while the numbers grow, and the line never wraps (a wrapped line
+  // breaks the carriage-return redraw). The bar gets what the fields leave, 10 to 40 cells; the
+  // step count only on terminals of 100 columns or more.
+  auto pad = [](std::string text, std::size_t width) {
+    if (text.size() < width) text.resize(width, ' ');
+    return text;
+  };
+  const int width = terminal_width(out_);
+  const bool wide = width >= 100;
+  std::string fields = pad(done, 28) + "  " + (wide ? pad(steps, 16) + "  " : "") +
+                       pad(fmt_duration(elapsed), 11) + "  ETA " + eta_text;
+  constexpr int kState = 9;      // SUCCEEDED, the longest state name
+  constexpr int kEtaWidth = 11;  // "99 h 59 min"
+  const int fixed = kState + 2 + 28 + 2 + (wide ? 18 : 0) + 11 + 6 + kEtaWidth;
+  const int bar = std::min(40, width - 1 - fixed - 4);
+  std::string line = pad(state_name(job.state()), kState) + "  ";
+  if (bar >= 10) {
+    const int filled = static_cast<int>(std::lround(fraction * bar));
+    line += '[';
+    line.append(static_cast<std::size_t>(filled), '#');
+    line.append(static_cast<std::size_t>(bar - filled), '.');
+    line += "]  ";
+  }
+  return line + fields;
 }
 
 void ProgressDisplay::update(const v1::Job& job) {

@@ -33,8 +33,10 @@ bool timestamp_set(const google::protobuf::Timestamp& ts);
 std::string state_name(int state);
 bool is_terminal(int state);
 
-// The protobuf JSON mapping (lowerCamelCase names, enums as names, zeros printed too).
-std::string to_json(const google::protobuf::Message& message, bool pretty = true);
+// The protobuf JSON mapping (lowerCamelCase names, enums as names, zeros printed too);
+// proto_names keeps the proto's snake_case names (the summary: the names softshock-solve prints).
+std::string to_json(const google::protobuf::Message& message, bool pretty = true,
+                    bool proto_names = false);
 
 // "key:   value" lines with the values aligned in one column.
 class KeyValues {
@@ -51,6 +53,9 @@ class KeyValues {
 // Whitespace-aligned table; numbers right-aligned, the first column left-aligned.
 void print_table(std::FILE* out, const std::vector<std::string>& header,
                  const std::vector<std::vector<std::string>>& rows);
+
+// "k=v,k2=v2", sorted by key (protobuf maps have no order), so the output is stable.
+std::string join_labels(const google::protobuf::Map<std::string, std::string>& labels);
 
 // CSV field quoting (RFC 4180) for label values and names.
 std::string csv_escape(const std::string& field);

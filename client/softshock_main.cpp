@@ -13,13 +13,14 @@
 #include <vector>
 
 #include "client/commands.hpp"
+#include "softshock/version.hpp"
 
 namespace softshock::cli {
 namespace {
 
 const std::vector<OptionSpec> kGlobalOptions = {
-    {"server", true}, {"token-file", true}, {"tls-ca", true},
-    {"json", false},  {"timeout", true},    {"help", false},
+    {"server", true},  {"token-file", true}, {"tls-ca", true},   {"json", false},
+    {"timeout", true}, {"help", false},      {"version", false},
 };
 
 const std::vector<Command>& commands() {
@@ -34,12 +35,48 @@ const std::vector<Command>& commands() {
       {"status", "ID", "show a job", {}, 1, 1, cmd_status},
       {"watch", "ID", "follow a job to its end (exit 0 only if it SUCCEEDED)", {}, 1, 1, cmd_watch},
       {"list",
-       "[--state S] [--label k=v] [--owner USER | --mine] [--limit N]",
-       "list jobs, newest first (--limit 0 = all; default 100); --mine: your own",
-       {{"state", true}, {"label", true}, {"owner", true}, {"mine", false}, {"limit", true}},
+       "[--state S] [--label k=v] [--owner USER | --mine] [--since T] [--until T]\n"
+       "                 [--fields PATH,...] [--format table|csv|json] [--limit N]",
+       "list jobs, newest first, with state reason, elapsed time and owner (--limit 0 = all;\n"
+       "           default 100); --mine: your own; --since/--until: created after/before a time\n"
+       "           (2026-12-04, 2026-12-04T17:00:00Z, or an age: 30min, 2h, 3d); --fields adds\n"
+       "           spec fields as columns (material.shear_viscosity,load.pressure)",
+       {{"state", true},
+        {"label", true},
+        {"owner", true},
+        {"mine", false},
+        {"limit", true},
+        {"since", true},
+        {"until", true},
+        {"fields", true},
+        {"format", true}},
        0,
        0,
        cmd_list},
+      {"label",
+       "ID KEY=VALUE... [-KEY]...",
+       "set labels of a job (your own; an admin: any) and remove them (-KEY)",
+       {{"remove", true}},
+       1,
+       128,
+       cmd_label},
+      {"fetch",
+       "ID [DIR] [--file h5|xdmf|spec|summary]...",
+       "download a finished job's result.h5, result.xdmf, spec.json and summary.json into DIR\n"
+       "           (default ./ID); resumes a partial download, checks SHA-256; ParaView opens\n"
+       "           DIR/result.xdmf",
+       {{"file", true}},
+       1,
+       2,
+       cmd_fetch},
+      {"diff",
+       "A B [--png FILE]",
+       "compare two jobs: the spec fields that differ (after defaults), the summary figures\n"
+       "           side by side with B's relative difference; --png: A-bar(t) of both",
+       {{"png", true}},
+       2,
+       2,
+       cmd_diff},
       {"cancel",
        "ID",
        "cancel a queued or running job (your own; an admin: any)",
@@ -103,8 +140,8 @@ const std::vector<Command>& commands() {
        "           CSV or heat map (quantities: max_abar_first_cycle, max_abar, abar_end,\n"
        "           max_abar_filtered[_first_cycle], abar_filtered_end, max_aspect_ratio, abar_at "
        "--tbar T,\n"
-       "           dominant_mode_end, energy_injected, energy_after_pulse, shock_at_center, "
-       "wall_time)",
+       "           dominant_mode_end, energy_injected_J_per_m, energy_after_pulse_J_per_m,\n"
+       "           shock_at_center_s, wall_time_s; the older energy_injected, ... still work)",
        {{"wait", false},
         {"label", true},
         {"priority", true},
@@ -134,9 +171,9 @@ const std::vector<Command>& commands() {
        "catalogued jobs whose groups / summary figures pass filters, e.g. --where 'pbar=0.5..1.5'\n"
        "           --where 'gamma>6' --where 'max_abar_first_cycle>0.01' (names: pbar, "
        "tbar_pulse,\n"
-       "           mubar, gamma, c1, c2, max_abar_first_cycle, max_abar, energy_injected,\n"
-       "           energy_after_pulse, dominant_mode_end, shock_at_center, wall_time, elements, "
-       "steps)",
+       "           mubar, gamma, c1, c2, max_abar_first_cycle, max_abar, energy_injected_J_per_m,\n"
+       "           energy_after_pulse_J_per_m, dominant_mode_end, shock_at_center_s, wall_time_s,\n"
+       "           elements, steps)",
        {{"where", true},
         {"state", true},
         {"grid", true},
@@ -163,7 +200,8 @@ const std::vector<Command>& commands() {
 void print_usage(std::FILE* out) {
   std::fprintf(out,
                "usage: softshock [--server HOST:PORT] [--token-file FILE] [--tls-ca FILE] "
-               "[--json] [--timeout S] COMMAND [ARGS]\n\n"
+               "[--json] [--timeout S] COMMAND [ARGS]\n"
+               "       softshock --help | --version\n\n"
                "  --server      daemon address (env SOFTSHOCK_SERVER; default 127.0.0.1:50051)\n"
                "  --token-file  send 'authorization: Bearer TOKEN' (token read from FILE)\n"
                "  --tls-ca      use TLS, trusting this root CA (PEM); default: plaintext\n"
@@ -211,6 +249,10 @@ int run(int argc, char** argv, std::string& command_name) {
     if (needs_value && i < args.size()) leading.push_back(args[i++]);
   }
   ParsedArgs global = parse_options(leading, kGlobalOptions);
+  if (global.has("version")) {
+    std::printf("softshock %s\n", kVersion);
+    return kExitOk;
+  }
   if (global.has("help") || i == args.size()) {
     print_usage(global.has("help") ? stdout : stderr);
     return global.has("help") ? kExitOk : kExitUsage;
@@ -231,8 +273,9 @@ int run(int argc, char** argv, std::string& command_name) {
   }
   std::vector<OptionSpec> specs = cmd->options;
   specs.insert(specs.end(), kGlobalOptions.begin(), kGlobalOptions.end());
-  ParsedArgs parsed =
-      parse_options(std::vector<std::string>(args.begin() + i + 1, args.end()), specs);
+  // `label ID -KEY` removes KEY: there a word with one dash is an argument, not an option.
+  ParsedArgs parsed = parse_options(std::vector<std::string>(args.begin() + i + 1, args.end()),
+                                    specs, /*single_dash_words=*/command_name == "label");
   if (parsed.has("help")) {
     std::printf("usage: softshock %s %s\n  %s\n", cmd->name, cmd->synopsis, cmd->help);
     return kExitOk;

@@ -31,6 +31,7 @@
 #include "server/transport/mesh_service.hpp"
 #include "server/transport/rpc_metrics.hpp"
 #include "server/transport/simulation_service.hpp"
+#include "softshock/version.hpp"
 
 namespace softshock::server {
 

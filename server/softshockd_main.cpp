@@ -13,6 +13,7 @@
 #include "server/daemon.hpp"
 #include "server/daemon_config.hpp"
 #include "server/log.hpp"
+#include "softshock/version.hpp"
 
 int main(int argc, char** argv) {
   using namespace softshock::server;

@@ -154,6 +154,35 @@ RunSummary summarize(const Problem& problem, const RunResult& r) {
   return s;
 }
 
+const std::vector<std::pair<std::string, std::string>>& renamed_summary_names() {
+  static const std::vector<std::pair<std::string, std::string>> names = {
+      {"wall_time", "wall_time_s"},
+      {"end_time", "end_time_s"},
+      {"time_scale", "time_scale_s"},
+      {"energy_injected", "energy_injected_J_per_m"},
+      {"energy_after_pulse", "energy_after_pulse_J_per_m"},
+      {"shock_at_center", "shock_at_center_s"},
+      {"rim_reflections", "rim_reflections_s"},
+      {"min_dt", "min_dt_s"},
+      {"max_dt", "max_dt_s"},
+      {"kernel_time", "kernel_time_s"},
+      {"grind_time", "grind_ns"},
+      {"kernel_grind_time", "kernel_grind_ns"},
+      {"meshing_time", "meshing_time_s"},
+      {"aspect_ratio_above_10", "aspect_ratio_above_10_s"},
+      {"diagnostics_time", "diagnostics_time_s"},
+      {"output_time", "output_time_s"},
+  };
+  return names;
+}
+
+std::string current_summary_name(const std::string& name) {
+  for (const auto& [old_name, name_now] : renamed_summary_names()) {
+    if (name == old_name) return name_now;
+  }
+  return name;
+}
+
 std::string summary_to_json(const RunSummary& s) {
   std::ostringstream o;
   o << "{\"status\":\"" << s.status << "\"";

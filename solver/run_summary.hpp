@@ -2,6 +2,7 @@
 #pragma once
 
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "model.hpp"
@@ -85,5 +86,14 @@ struct RunSummary {
 
 RunSummary summarize(const Problem& problem, const RunResult& result);
 std::string summary_to_json(const RunSummary& summary);
+
+// The summary's names carry their units (summary_to_json's keys, JobSummary's fields since they
+// were renamed): the name a figure had before (energy_injected, shock_at_center, wall_time,
+// grind_time, groups' time_scale, ...) mapped to today's (energy_injected_J_per_m,
+// shock_at_center_s, wall_time_s, grind_ns, time_scale_s, ...); any other name is returned as
+// it is. Grid reductions and queries accept both (docs/api.md, "Summary names").
+std::string current_summary_name(const std::string& name);
+// (old name, today's name) of every renamed figure.
+const std::vector<std::pair<std::string, std::string>>& renamed_summary_names();
 
 }  // namespace softshock

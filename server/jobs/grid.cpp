@@ -311,17 +311,18 @@ const std::vector<GridQuantity>& grid_quantities() {
       {"max_aspect_ratio", "1", false},
       {"abar_at", "1", true},
       {"dominant_mode_end", "1", false},
-      {"energy_injected", "J/m", false},
-      {"energy_after_pulse", "J/m", false},
-      {"shock_at_center", "s", false},
-      {"wall_time", "s", false},
+      {"energy_injected_J_per_m", "J/m", false},
+      {"energy_after_pulse_J_per_m", "J/m", false},
+      {"shock_at_center_s", "s", false},
+      {"wall_time_s", "s", false},
   };
   return quantities;
 }
 
 const GridQuantity* find_grid_quantity(const std::string& name) {
+  const std::string current = current_summary_name(name);  // energy_injected, ... still work
   for (const auto& q : grid_quantities()) {
-    if (name == q.name) return &q;
+    if (current == q.name) return &q;
   }
   return nullptr;
 }
@@ -337,10 +338,10 @@ double grid_quantity(const GridQuantity& quantity, const StoredSummary& stored, 
   if (name == "abar_filtered_end") return s.abar_filtered_end;
   if (name == "max_aspect_ratio") return s.max_aspect_ratio;
   if (name == "dominant_mode_end") return s.dominant_mode_end;
-  if (name == "energy_injected") return s.energy_injected_J_per_m;
-  if (name == "energy_after_pulse") return s.energy_after_pulse_J_per_m;
-  if (name == "shock_at_center") return s.shock_at_center_s < 0 ? NAN : s.shock_at_center_s;
-  if (name == "wall_time") return s.wall_time_s;
+  if (name == "energy_injected_J_per_m") return s.energy_injected_J_per_m;
+  if (name == "energy_after_pulse_J_per_m") return s.energy_after_pulse_J_per_m;
+  if (name == "shock_at_center_s") return s.shock_at_center_s < 0 ? NAN : s.shock_at_center_s;
+  if (name == "wall_time_s") return s.wall_time_s;
   // abar_at
   const auto& t = stored.abar_times;
   const auto& a = stored.abar_values;

@@ -64,6 +64,7 @@ struct GridQuantity {
   bool needs_tbar;
 };
 const std::vector<GridQuantity>& grid_quantities();
+// By name; a summary figure's older name (energy_injected, ...) finds today's quantity.
 const GridQuantity* find_grid_quantity(const std::string& name);
 
 // One point's value of a quantity from its catalogued summary; NaN where undefined (A-bar at a

@@ -18,6 +18,7 @@
 #include "server/jobs/mesh_process.hpp"
 #include "server/log.hpp"
 #include "server/store/resource_exhausted.hpp"
+#include "softshock/version.hpp"
 #include "solver/io/async_result_writer.hpp"
 #include "solver/io/result_file.hpp"
 #include "solver/run_summary.hpp"

@@ -315,6 +315,15 @@ class Catalogue {
   bool cancel_queued(const std::string& id, int64_t now_us);
   // Removes the job, its labels, attempts and summary.
   bool erase(const std::string& id);
+  // Sets and removes labels of one job in one transaction (catalogue_labels.cpp); the job as it
+  // now is, or nullopt when it does not exist. With more than max_labels labels afterwards
+  // nothing changes and `too_many` holds the count the change would have left.
+  struct LabelUpdate {
+    std::optional<JobRecord> job;
+    std::size_t too_many = 0;
+  };
+  LabelUpdate update_labels(const std::string& id, const std::map<std::string, std::string>& set,
+                            const std::vector<std::string>& remove, std::size_t max_labels);
   // --- the slurm executor
   // Records the Slurm job ids of QUEUED jobs that are not submitted yet, all in one durable
   // transaction (a whole array job at once); returns how many were recorded.

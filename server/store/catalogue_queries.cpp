@@ -28,7 +28,8 @@ std::optional<StoredSummary> Catalogue::summary(const std::string& id) const {
 
 namespace {
 
-// QueryJobs names -> SQL, from a fixed table: user text never reaches the SQL.
+// QueryJobs names -> SQL, from a fixed table: user text never reaches the SQL. The names are the
+// summary's (units in the name); the service maps the older ones (current_summary_name).
 const std::vector<std::pair<std::string, std::string>>& query_columns() {
   static const std::vector<std::pair<std::string, std::string>> columns = {
       {"pbar", "j.pbar"},
@@ -39,11 +40,11 @@ const std::vector<std::pair<std::string, std::string>>& query_columns() {
       {"c2", "j.c2"},
       {"max_abar_first_cycle", "j.max_abar_first_cycle"},
       {"max_abar", "j.max_abar"},
-      {"energy_injected", "j.energy_injected"},
-      {"energy_after_pulse", "j.energy_after_pulse"},
+      {"energy_injected_J_per_m", "j.energy_injected"},
+      {"energy_after_pulse_J_per_m", "j.energy_after_pulse"},
       {"dominant_mode_end", "j.dominant_mode_end"},
-      {"shock_at_center", "j.shock_at_center"},
-      {"wall_time", "j.wall_time"},
+      {"shock_at_center_s", "j.shock_at_center"},
+      {"wall_time_s", "j.wall_time"},
       {"elements", "j.elements"},
       {"steps", "j.steps"},
   };

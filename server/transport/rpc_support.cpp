@@ -16,7 +16,6 @@ using grpc::StatusCode;
 
 namespace {
 
-constexpr std::size_t kMaxLabels = 64;
 constexpr std::size_t kMaxLabelKey = 63;
 constexpr std::size_t kMaxLabelValue = 255;
 constexpr std::size_t kMaxRequestId = 128;
@@ -167,7 +166,7 @@ void fill_groups(const NondimensionalGroups& from, v1::NondimensionalGroups* g) 
   g->set_gamma(from.gamma);
   g->set_c1(from.c1);
   g->set_c2(from.c2);
-  g->set_time_scale(from.time_scale_s);
+  g->set_time_scale_s(from.time_scale_s);
 }
 
 void fill_summary(const std::string& id, const RunSummary& s, v1::JobSummary* resp) {
@@ -175,22 +174,22 @@ void fill_summary(const std::string& id, const RunSummary& s, v1::JobSummary* re
   resp->set_elements(static_cast<int64_t>(s.elements));
   resp->set_nodes(static_cast<int64_t>(s.nodes));
   resp->set_steps(s.steps);
-  resp->set_wall_time(s.wall_time_s);
-  resp->set_end_time(s.end_time_s);
+  resp->set_wall_time_s(s.wall_time_s);
+  resp->set_end_time_s(s.end_time_s);
   fill_groups(s.groups, resp->mutable_groups());
-  resp->set_energy_injected(s.energy_injected_J_per_m);
-  resp->set_energy_after_pulse(s.energy_after_pulse_J_per_m);
+  resp->set_energy_injected_j_per_m(s.energy_injected_J_per_m);
+  resp->set_energy_after_pulse_j_per_m(s.energy_after_pulse_J_per_m);
   resp->set_max_abar_first_cycle(s.max_abar_first_cycle);
   resp->set_max_abar(s.max_abar);
   resp->set_dominant_mode_end(s.dominant_mode_end);
-  resp->set_shock_at_center(s.shock_at_center_s);
-  for (double t : s.rim_reflections_s) resp->add_rim_reflections(t);
-  resp->set_min_dt(s.min_dt_s);
-  resp->set_max_dt(s.max_dt_s);
-  resp->set_kernel_time(s.kernel_time_s);
-  resp->set_grind_time(s.grind_ns());
-  resp->set_kernel_grind_time(s.kernel_grind_ns());
-  resp->set_meshing_time(s.meshing_time_s);
+  resp->set_shock_at_center_s(s.shock_at_center_s);
+  for (double t : s.rim_reflections_s) resp->add_rim_reflections_s(t);
+  resp->set_min_dt_s(s.min_dt_s);
+  resp->set_max_dt_s(s.max_dt_s);
+  resp->set_kernel_time_s(s.kernel_time_s);
+  resp->set_grind_ns(s.grind_ns());
+  resp->set_kernel_grind_ns(s.kernel_grind_ns());
+  resp->set_meshing_time_s(s.meshing_time_s);
   resp->set_meshing_share(s.meshing_share());
   resp->set_mesh_cache(s.mesh_cache);
   resp->set_abar_end(s.abar_end);
@@ -198,11 +197,11 @@ void fill_summary(const std::string& id, const RunSummary& s, v1::JobSummary* re
   resp->set_max_abar_filtered(s.max_abar_filtered);
   resp->set_abar_filtered_end(s.abar_filtered_end);
   resp->set_max_aspect_ratio(s.max_aspect_ratio);
-  resp->set_aspect_ratio_above_10(s.aspect_ratio_above_10_s);
+  resp->set_aspect_ratio_above_10_s(s.aspect_ratio_above_10_s);
   resp->set_solver_revision(s.solver_revision);
-  resp->set_diagnostics_time(s.diagnostics_time_s);
+  resp->set_diagnostics_time_s(s.diagnostics_time_s);
   resp->set_diagnostics_share(s.diagnostics_share());
-  resp->set_output_time(s.output_time_s);
+  resp->set_output_time_s(s.output_time_s);
   resp->set_output_share(s.output_share());
 }
 
@@ -211,16 +210,21 @@ Status check_request_id_and_labels(const std::string& request_id,
   if (request_id.size() > kMaxRequestId) {
     return invalid("request_id", "at most " + std::to_string(kMaxRequestId) + " characters");
   }
+  return check_labels("labels", labels);
+}
+
+Status check_labels(const std::string& field,
+                    const google::protobuf::Map<std::string, std::string>& labels) {
   if (labels.size() > kMaxLabels) {
-    return invalid("labels", "at most " + std::to_string(kMaxLabels) + " labels");
+    return invalid(field, "at most " + std::to_string(kMaxLabels) + " labels");
   }
   for (const auto& [key, value] : labels) {
     if (key.empty() || key.size() > kMaxLabelKey || key.find('=') != std::string::npos) {
-      return invalid("labels",
+      return invalid(field,
                      "keys must be 1.." + std::to_string(kMaxLabelKey) + " characters without '='");
     }
     if (value.size() > kMaxLabelValue) {
-      return invalid("labels[" + key + "]",
+      return invalid(field + "[" + key + "]",
                      "values must be at most " + std::to_string(kMaxLabelValue) + " characters");
     }
   }

@@ -66,6 +66,11 @@ void fill_summary(const std::string& id, const RunSummary& s, v1::JobSummary* re
 // request_id and labels of SubmitJob and SubmitGrid.
 grpc::Status check_request_id_and_labels(
     const std::string& request_id, const google::protobuf::Map<std::string, std::string>& labels);
+// The label rules (at most kMaxLabels; keys 1..63 characters without '='; values at most 255),
+// errors naming `field` ("labels", UpdateJobLabels' "set").
+inline constexpr std::size_t kMaxLabels = 64;
+grpc::Status check_labels(const std::string& field,
+                          const google::protobuf::Map<std::string, std::string>& labels);
 // INVALID_ARGUMENT for a SpecError found under `prefix` ("spec", "base_spec", or "" for grid
 // fields), with the field path repeated in the trailing metadata.
 grpc::Status spec_invalid(grpc::ServerContext* ctx, const std::string& prefix, const SpecError& e);

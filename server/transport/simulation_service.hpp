@@ -16,6 +16,7 @@
 #include "server/policy/audit.hpp"
 #include "server/policy/quotas.hpp"
 #include "server/store/catalogue.hpp"
+#include "server/store/file_digests.hpp"
 #include "server/store/mesh_store.hpp"
 #include "server/transport/auth.hpp"
 #include "softshock/v1/service.grpc.pb.h"
@@ -73,6 +74,12 @@ class SimulationService final : public v1::SimulationService::Service {
                          v1::QueryJobsResponse* resp) override;
   grpc::Status GetCaller(grpc::ServerContext* ctx, const v1::GetCallerRequest* req,
                          v1::Caller* resp) override;
+  // simulation_service_downloads.cpp
+  grpc::Status DownloadResult(grpc::ServerContext* ctx, const v1::DownloadResultRequest* req,
+                              grpc::ServerWriter<v1::DownloadChunk>* writer) override;
+  // simulation_service_labels.cpp
+  grpc::Status UpdateJobLabels(grpc::ServerContext* ctx, const v1::UpdateJobLabelsRequest* req,
+                               v1::Job* resp) override;
 
   int active_streams() const { return active_streams_.load(); }
 
@@ -101,6 +108,8 @@ class SimulationService final : public v1::SimulationService::Service {
   grpc::Status cancel_grid(const Caller& caller, const std::string& id, v1::Grid* resp);
   grpc::Status grid_reduction(const v1::GetGridReductionRequest& req, v1::GridReduction* resp);
   grpc::Status query(const v1::QueryJobsRequest& req, v1::QueryJobsResponse* resp);
+  grpc::Status download(grpc::ServerContext* ctx, const v1::DownloadResultRequest& req,
+                        grpc::ServerWriter<v1::DownloadChunk>* writer);
   // The grid with its live counts, progress and derived state.
   void fill_grid(const GridRecord& record, v1::Grid* grid) const;
 
@@ -121,6 +130,7 @@ class SimulationService final : public v1::SimulationService::Service {
   const JobRunner& runner_;
   const Authenticator& auth_;
   const MeshStore& meshes_;  // uploaded meshes, and where spec mesh files resolve
+  FileDigests digests_;      // SHA-256 of result files already downloaded (DownloadResult)
   std::atomic<int> active_streams_{0};
   std::mutex id_mutex_;
   std::mt19937_64 id_random_;

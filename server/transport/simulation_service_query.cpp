@@ -28,8 +28,10 @@ Status SimulationService::QueryJobs(grpc::ServerContext* ctx, const v1::QueryJob
 Status SimulationService::query(const v1::QueryJobsRequest& req, v1::QueryJobsResponse* resp) {
   constexpr int kMaxFilters = 16;
   const auto& names = query_column_names();
+  // The names of figures renamed with units (energy_injected -> energy_injected_J_per_m, ...)
+  // are accepted in their older spelling too.
   auto known = [&](const std::string& n) {
-    return std::find(names.begin(), names.end(), n) != names.end();
+    return std::find(names.begin(), names.end(), current_summary_name(n)) != names.end();
   };
   auto known_list = [&] {
     std::string list;
@@ -50,7 +52,7 @@ Status SimulationService::query(const v1::QueryJobsRequest& req, v1::QueryJobsRe
                      "unknown name '" + f.name() + "' (known: " + known_list() + ")");
     }
     RangeCondition c;
-    c.name = f.name();
+    c.name = current_summary_name(f.name());
     const std::pair<bool, double> bounds[] = {
         {f.has_gt(), f.gt()}, {f.has_ge(), f.ge()}, {f.has_lt(), f.lt()}, {f.has_le(), f.le()}};
     for (const auto& [given, value] : bounds) {
@@ -86,7 +88,7 @@ Status SimulationService::query(const v1::QueryJobsRequest& req, v1::QueryJobsRe
     if (!extra.empty() || (!direction.empty() && direction != "asc" && direction != "desc")) {
       return invalid("order_by", "expected NAME, NAME asc or NAME desc");
     }
-    q.order_by = column;
+    q.order_by = current_summary_name(column);
     q.descending = direction == "desc";
   }
   v1::QueryJobsRequest shape = req;

@@ -40,6 +40,7 @@
 #include <string>
 #include <string_view>
 
+#include "softshock/version.hpp"
 #include "solver/gmsh_mesher.hpp"
 #include "solver/mesh_cache.hpp"
 #include "solver/msh_counts.hpp"
@@ -50,7 +51,7 @@ namespace {
 int usage(const char* msg) {
   if (msg) std::fprintf(stderr, "softshock-mesh: %s\n", msg);
   std::fprintf(
-      stderr,
+      msg ? stderr : stdout,
       "usage: softshock-mesh --spec SPEC.json --out FILE [--mesh-cache DIR]\n"
       "                      [--mesh-cache-bytes N] [--max-elements N] [--max-end-time S]\n"
       "                      [--mesh-root DIR]\n"
@@ -61,6 +62,7 @@ int usage(const char* msg) {
       "       softshock-mesh --check FILE [--max-elements N] [--max-memory BYTES]\n"
       "                      [--max-cpu-seconds S] [--tmp-dir DIR]\n"
       "  checks a mesh file under those limits; prints its node and element counts\n"
+      "       softshock-mesh --help | --version\n"
       "exit codes: 0 done, 2 invalid spec, unusable mesh or usage, 1 failure\n");
   return 2;
 }
@@ -204,6 +206,10 @@ int main(int argc, char** argv) {
     const char* v = i + 1 < argc ? argv[i + 1] : nullptr;
     if (a == "--help" || a == "-h") {
       usage(nullptr);
+      return 0;
+    }
+    if (a == "--version") {
+      std::printf("softshock-mesh %s\n", softshock::kVersion);
       return 0;
     }
     if (v == nullptr || *v == '\0') return usage((a + " needs a value").c_str());

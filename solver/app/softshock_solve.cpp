@@ -19,6 +19,7 @@
 #include <string>
 #include <utility>
 
+#include "softshock/version.hpp"
 #include "solver/io/async_result_writer.hpp"
 #include "solver/mesh_cache.hpp"
 #include "solver/run_spec.hpp"
@@ -32,9 +33,10 @@ extern "C" void on_signal(int) {
   g_cancel.store(true);
 }
 
+// The usage text: on stdout for --help (exit 0), on stderr after a usage error (exit 2).
 int usage(const char* msg) {
   if (msg) std::fprintf(stderr, "softshock-solve: %s\n", msg);
-  std::fprintf(stderr,
+  std::fprintf(msg ? stderr : stdout,
                "usage: softshock-solve --spec SPEC.json --out DIR [--threads N] [--quiet]\n"
                "                       [--max-elements N] [--max-end-time SECONDS]\n"
                "                       [--mesh-cache DIR | --no-mesh-cache]\n"
@@ -44,6 +46,7 @@ int usage(const char* msg) {
                "             else $XDG_CACHE_HOME/softshock/meshes or ~/.cache/softshock/meshes;\n"
                "             SOFTSHOCK_MESH_CACHE=off disables; SOFTSHOCK_MESH_CACHE_BYTES bounds\n"
                "             it, default 512 MiB)\n"
+               "       softshock-solve --help | --version\n"
                "exit codes: 0 success, 2 invalid spec or usage, 1 run failure\n");
   return 2;
 }
@@ -134,6 +137,9 @@ int main(int argc, char** argv) {
       quiet = true;
     } else if (a == "--help" || a == "-h") {
       usage(nullptr);
+      return 0;
+    } else if (a == "--version") {
+      std::printf("softshock-solve %s\n", softshock::kVersion);
       return 0;
     } else {
       return usage(("unknown argument '" + a + "'").c_str());

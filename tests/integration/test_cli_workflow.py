@@ -60,8 +60,8 @@ class CliWorkflowTest(DaemonTestCase):
         summary = self.cli_json("summary", job_id)
         self.assertGreater(int(summary["elements"]), 200)
         self.assertGreater(int(summary["steps"]), 0)
-        self.assertAlmostEqual(summary["endTime"], 2e-8, delta=1e-10)
-        self.assertGreater(summary["energyInjected"], 0)
+        self.assertAlmostEqual(summary["end_time_s"], 2e-8, delta=1e-10)
+        self.assertGreater(summary["energy_injected_J_per_m"], 0)
         self.assertAlmostEqual(summary["groups"]["gamma"], 6.15)
 
         health = self.cli_ok("health")

@@ -71,7 +71,7 @@ class OwnersAndPermissionsTest(SharedDaemon):
         self.assertEqual(self.cli_json("--token-file", self.token_files["bob"], "status",
                                        job)["owner"], "alice")
         listing = self.as_user_ok("bob", "list").stdout
-        self.assertRegex(listing.splitlines()[0], r"ID\s+STATE\s+PROGRESS\s+OWNER")
+        self.assertRegex(listing.splitlines()[0], r"ID\s+STATE\s+REASON\s+PROGRESS\s+ELAPSED\s+OWNER")
         self.assertIn("alice", listing)
         self.assertEqual(self.cli_json("--token-file", self.token_files["bob"], "list",
                                        "--mine").get("jobs", []), [])
@@ -95,7 +95,8 @@ class OwnersAndPermissionsTest(SharedDaemon):
         msh = self.write_json(square_msh(), "square.msh")
         mesh_id = self.as_user_ok("alice", "mesh", "upload", msh).stdout.strip()
         self.assertIn("alice", self.as_user_ok("bob", "mesh", "list").stdout)
-        self.assertEqual(self.as_user_ok("bob", "mesh", "list", "--mine").stdout, "")
+        self.assertEqual(self.as_user_ok("bob", "mesh", "list", "--mine").stdout,
+                         "no meshes uploaded by bob (softshock mesh upload FILE.msh)\n")
         self.assertEqual([m.owner for m in bob.list_meshes(owner="alice")], ["alice"])
         p = self.as_user("bob", "mesh", "delete", mesh_id)
         self.assertEqual(p.returncode, 1)

@@ -209,7 +209,12 @@ TEST(GridReduction, QuantitiesFromTheStoredSummary) {
     return grid_quantity(*find_grid_quantity(name), s, tbar);
   };
   EXPECT_DOUBLE_EQ(q("max_abar_first_cycle"), 0.02);
+  EXPECT_DOUBLE_EQ(q("energy_injected_J_per_m"), 5);
+  EXPECT_TRUE(std::isnan(q("shock_at_center_s"))) << "not detected";
+  // The names before the summary's carried units still find the same quantities.
   EXPECT_DOUBLE_EQ(q("energy_injected"), 5);
+  EXPECT_STREQ(find_grid_quantity("energy_injected")->name, "energy_injected_J_per_m");
+  EXPECT_STREQ(find_grid_quantity("wall_time")->name, "wall_time_s");
   EXPECT_TRUE(std::isnan(q("shock_at_center"))) << "not detected";
   EXPECT_DOUBLE_EQ(q("abar_at", 1.0), 0.01);
   EXPECT_DOUBLE_EQ(q("abar_at", 1.5), 0.02);

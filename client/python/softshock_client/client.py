@@ -39,6 +39,8 @@ except ImportError as exc:  # pragma: no cover - depends on the environment
         "`cmake --build build --target softshock_python` and put build/python on PYTHONPATH "
         "(PYTHONPATH=build/python:client/python)") from exc
 
+from .downloads import Downloaded, DownloadError, download as _download  # noqa: E402
+from .jobs import Grid, Job, JobState, Summary, job_state, summary_dict  # noqa: E402
 from .meshes import local_mesh_file, spec_dir, upload_requests  # noqa: E402 (needs the stubs)
 
 DEFAULT_SERVER = "127.0.0.1:50051"
@@ -61,7 +63,7 @@ class SpecError(ValueError):
 
 def state_name(state_or_job) -> str:
     """Name of a JobState value (or of a Job's state); tolerates values newer than this client."""
-    value = getattr(state_or_job, "state", state_or_job)
+    value = int(getattr(state_or_job, "state", state_or_job))
     try:
         return service_pb2.JobState.Name(value)
     except ValueError:
@@ -269,6 +271,7 @@ class Client:
 
     # -- plumbing ------------------------------------------------------------------------------
     def close(self) -> None:
+        """Closes the channel; the client cannot be used afterwards."""
         self._channel.close()
 
     def __enter__(self) -> "Client":
@@ -305,19 +308,29 @@ class Client:
         job = self._call(self._stub.SubmitJob, request)
         if wait:
             return self.wait(job.id)
-        return job
+        return Job(job)
 
-    def get(self, job_id: str):
-        return self._call(self._stub.GetJob, service_pb2.GetJobRequest(id=job_id))
+    def get(self, job_id: str) -> Job:
+        """The job (`id` or `jobs/{id}`) with its live progress; `state` is a JobState."""
+        return Job(self._call(self._stub.GetJob, service_pb2.GetJobRequest(id=job_id)))
 
     def list(self, state: Optional[Union[str, int]] = None, label: Optional[str] = None,
              limit: Optional[int] = None, page_size: int = 0,
-             owner: Optional[str] = None) -> List:
+             owner: Optional[str] = None, created_after=None,
+             created_before=None) -> List[Job]:
         """Jobs, newest first, following page tokens until `limit` (None = all). `owner`: only
-        that user's jobs (your own: owner=client.whoami()[0])."""
+        that user's jobs (your own: owner=client.whoami()[0]); `created_after` and
+        `created_before`: datetimes (naive = UTC) or seconds since the epoch."""
         request = service_pb2.ListJobsRequest(label=label or "", owner=owner or "")
         if state is not None:
             request.state = service_pb2.JobState.Value(state) if isinstance(state, str) else state
+        for field, when in (("created_after", created_after), ("created_before", created_before)):
+            if when is None:
+                continue
+            if isinstance(when, (int, float)):
+                getattr(request, field).FromNanoseconds(int(when * 1e9))
+            else:
+                getattr(request, field).FromDatetime(when)
         jobs = []
         while True:
             if limit is not None:
@@ -327,7 +340,7 @@ class Client:
             elif page_size:
                 request.page_size = page_size
             page = self._call(self._stub.ListJobs, request)
-            jobs.extend(page.jobs)
+            jobs.extend(Job(j) for j in page.jobs)
             if not page.next_page_token:
                 break
             request.page_token = page.next_page_token
@@ -344,7 +357,7 @@ class Client:
             try:
                 for job in stream:
                     lost_since = None
-                    yield job
+                    yield Job(job)
                     if job.state in TERMINAL_STATES:
                         stream.cancel()
                         return
@@ -375,11 +388,49 @@ class Client:
         caller = self._call(self._stub.GetCaller, service_pb2.GetCallerRequest())
         return caller.user, caller.role
 
-    def cancel(self, job_id: str):
-        return self._call(self._stub.CancelJob, service_pb2.CancelJobRequest(id=job_id))
+    def cancel(self, job_id: str) -> Job:
+        """Cancels a queued or running job (your own; an admin: any); returns the job, normally
+        CANCELLED (a running job gets up to ~5 s to stop; watch it if it is still RUNNING)."""
+        return Job(self._call(self._stub.CancelJob, service_pb2.CancelJobRequest(id=job_id)))
 
     def delete(self, job_id: str) -> None:
+        """Deletes a job and its result files (your own; an admin: any), cancelling it first if
+        it has not finished."""
         self._call(self._stub.DeleteJob, service_pb2.DeleteJobRequest(id=job_id))
+
+    def set_labels(self, job_id: str, labels: Optional[Dict[str, str]] = None,
+                   remove: Sequence[str] = ()) -> Job:
+        """Sets `labels` and removes the keys in `remove` on a job (your own; an admin: any);
+        returns the job with its labels as they now are. Keys follow submit's rules (at most 64
+        labels); removing a key the job lacks is no error."""
+        request = service_pb2.UpdateJobLabelsRequest(name=job_id, set=dict(labels or {}),
+                                                     remove=list(remove))
+        return Job(self._call(self._stub.UpdateJobLabels, request))
+
+    def download(self, job_id: str, directory: Optional[str] = None,
+                 files: Sequence[str] = ("h5", "xdmf", "spec", "summary")) -> Dict[str, str]:
+        """Brings a finished job's files to this machine, as `softshock fetch` does:
+        result.h5, result.xdmf (ParaView opens it there), spec.json and summary.json into
+        `directory` (default ./JOB_ID, created). Resumes a NAME.part an interrupted download left,
+        checks every file's SHA-256 against the daemon's, and leaves a file that is already
+        there and equal alone. Returns {file name: local path}; `last_download` keeps the
+        details (sizes, digests, what happened). Raises SoftshockError for an unfinished job
+        or a failed call, DownloadError for a checksum that does not match."""
+        job = self.get(job_id)
+        if job.state in (JobState.QUEUED, JobState.RUNNING):
+            raise SoftshockError(grpc.StatusCode.FAILED_PRECONDITION,
+                                 f"job {job.id} is {job.state}: its files can be downloaded "
+                                 "once it finished")
+        directory = directory or job.id
+        call = lambda request, timeout: self._stub.DownloadResult(  # noqa: E731
+            request, timeout=timeout, metadata=self._metadata)
+        try:
+            self.last_download = _download(call, job.id, directory, files, timeout=self.timeout)
+        except DownloadError as exc:
+            if exc.code is None:
+                raise
+            raise SoftshockError(exc.code, exc.details) from None
+        return {name: d.path for name, d in self.last_download.items() if d.path}
 
     def health(self, service: str = "") -> str:
         """grpc.health.v1 status name, e.g. "SERVING"."""
@@ -393,13 +444,18 @@ class Client:
         return [value for key, value in call.initial_metadata() if key == "softshock-warning"]
 
     # -- results -------------------------------------------------------------------------------
-    def summary(self, job_id: str) -> dict:
-        """The run's figures as a dict with the proto's snake_case names (SI units)."""
+    def summary(self, job_id: str) -> Summary:
+        """The run's figures as a dict (also attributes) by the names softshock-solve prints,
+        units in the name (energy_injected_J_per_m, shock_at_center_s, grind_ns, ...); the older
+        names (energy_injected, shock_at_center, grind_time, ...) read the same values."""
         s = self._call(self._stub.GetJobSummary, service_pb2.GetJobSummaryRequest(id=job_id))
-        return message_to_dict(s)
+        return summary_dict(message_to_dict(s))
 
     def series(self, job_id: str, names: Optional[List[str]] = None,
                every: Optional[int] = None) -> SeriesDict:
+        """The scalar histories of a finished job: {"time": s, "abar": ..., "kinetic_energy":
+        ..., ...} as numpy arrays (`names`: only these; `every`: every k-th sample), units in
+        `.units`."""
         ts = self._call(self._stub.GetTimeSeries, service_pb2.GetTimeSeriesRequest(
             id=job_id, names=list(names or []), every=every or 0))
         out = SeriesDict(units={"time": "s"})
@@ -523,7 +579,7 @@ class Client:
         request.recompute = recompute or request.recompute
         request.request_id = request_id or request.request_id or str(uuid.uuid4())
         grid = self._call(self._stub.SubmitGrid, request)
-        return self.wait_grid(grid.id) if wait else grid
+        return self.wait_grid(grid.id) if wait else Grid(grid)
 
     # -- meshes --------------------------------------------------------------------------------
     def upload_mesh(self, path: str):
@@ -561,21 +617,24 @@ class Client:
             spec.geometry.mesh_id = mesh_id
         return spec
 
-    def grid(self, grid_id: str):
-        return self._call(self._stub.GetGrid, service_pb2.GetGridRequest(id=grid_id))
+    def grid(self, grid_id: str) -> Grid:
+        """The grid with its live counts and progress; `state` is a JobState."""
+        return Grid(self._call(self._stub.GetGrid, service_pb2.GetGridRequest(id=grid_id)))
 
-    def list_grids(self, owner: Optional[str] = None) -> List:
+    def list_grids(self, owner: Optional[str] = None) -> List[Grid]:
+        """Every grid, newest first (`owner`: only that user's)."""
         request = service_pb2.ListGridsRequest(page_size=1000, owner=owner or "")
         grids = []
         while True:
             page = self._call(self._stub.ListGrids, request)
-            grids.extend(page.grids)
+            grids.extend(Grid(g) for g in page.grids)
             if not page.next_page_token:
                 return grids
             request.page_token = page.next_page_token
 
-    def cancel_grid(self, grid_id: str):
-        return self._call(self._stub.CancelGrid, service_pb2.CancelGridRequest(id=grid_id))
+    def cancel_grid(self, grid_id: str) -> Grid:
+        """Cancels every unfinished point (finished ones keep their results); returns the grid."""
+        return Grid(self._call(self._stub.CancelGrid, service_pb2.CancelGridRequest(id=grid_id)))
 
     def wait_grid(self, grid_id: str, timeout: Optional[float] = None, poll: float = 0.5):
         """Polls until every point of the grid finished; returns the final Grid."""
@@ -629,8 +688,9 @@ class Client:
                        "grid_id": q.job.grid_id,
                        "grid_index": q.job.grid_index, "reused_from": q.job.reused_from}
                 row.update({k: v for k, v in message_to_dict(q.groups).items()})
-                row["summary"] = message_to_dict(q.summary) if q.HasField("summary") else None
-                rows.append(row)
+                row["summary"] = (summary_dict(message_to_dict(q.summary))
+                                  if q.HasField("summary") else None)
+                rows.append(Summary(row))
             if not page.next_page_token or (limit is not None and len(rows) >= limit):
                 return rows if limit is None else rows[:limit]
             request.page_token = page.next_page_token
@@ -639,5 +699,5 @@ class Client:
         """Ā(t) of several jobs and their common time scale R0/c0 (None when they differ), for
         plots.plot_abar."""
         series = [self.series(j, names=["abar"]) for j in job_ids]
-        scales = {self.summary(j)["groups"]["time_scale"] for j in job_ids}
+        scales = {self.summary(j)["groups"]["time_scale_s"] for j in job_ids}
         return series, (scales.pop() if len(scales) == 1 else None)

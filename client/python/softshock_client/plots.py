@@ -53,7 +53,7 @@ def plot_abar(series_list, path: str, labels: Optional[Sequence[str]] = None,
     """Ā(t) = (max r − min r) / R0 of the rim for one or several runs.
 
     series_list: a series dict from Client.series() (with "time" and "abar"), or a list of them.
-    time_scale: R0/c0 in s (summary["groups"]["time_scale"]) to plot against t̄ instead of ns.
+    time_scale: R0/c0 in s (summary["groups"]["time_scale_s"]) to plot against t̄ instead of ns.
     """
     if isinstance(series_list, Mapping):
         series_list = [series_list]
@@ -164,10 +164,10 @@ QUANTITY_LABELS = {
     "max_aspect_ratio": "largest element aspect ratio",
     "abar_at": r"$\bar{{A}}$ at $\bar{{t}}$ = {tbar:g}",
     "dominant_mode_end": "dominant rim mode at the end",
-    "energy_injected": "energy injected",
-    "energy_after_pulse": "energy after the pulse",
-    "shock_at_center": "shock arrival at the centre",
-    "wall_time": "wall time",
+    "energy_injected_J_per_m": "energy injected",
+    "energy_after_pulse_J_per_m": "energy after the pulse",
+    "shock_at_center_s": "shock arrival at the centre",
+    "wall_time_s": "wall time",
 }
 
 
@@ -180,6 +180,7 @@ def axis_label(name: str) -> str:
 
 
 def quantity_label(quantity: str, units: str = "", tbar: float = 0.0) -> str:
+    """Colour-bar label of a grid reduction's quantity, with its unit ("–" for none)."""
     text = QUANTITY_LABELS.get(quantity, quantity).format(tbar=tbar)
     unit = units if units and units != "1" else "–"
     return f"{text}  ({unit})"
@@ -280,7 +281,7 @@ def _job_plots(args) -> int:
             token = f.read().strip()
     with Client(args.server, token=token, tls_ca=args.tls_ca) as c:
         summary = c.summary(args.id)
-        time_scale = summary.get("groups", {}).get("time_scale") or None
+        time_scale = summary.get("groups", {}).get("time_scale_s") or None
         series = c.series(args.id, names=["abar"])
         modes = c.modes(args.id)
     out = []
@@ -295,6 +296,7 @@ def _job_plots(args) -> int:
 
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
+    """`python3 -m softshock_client.plots`: the CLI's PNG helper and the `job ID` plots."""
     parser = argparse.ArgumentParser(prog="python3 -m softshock_client.plots",
                                      description=__doc__.split("\n\n")[0])
     sub = parser.add_subparsers(dest="command", required=True)

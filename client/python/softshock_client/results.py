@@ -30,6 +30,7 @@ class ResultFile:
         self._frames = sorted(self._h5["fields"])
 
     def close(self) -> None:
+        """Closes the HDF5 file."""
         self._h5.close()
 
     def __enter__(self) -> "ResultFile":
@@ -40,14 +41,17 @@ class ResultFile:
 
     @property
     def complete(self) -> bool:
+        """False for the partial file of a run that stopped early (failed, cancelled)."""
         return bool(self._h5.attrs["complete"])
 
     @property
     def summary(self) -> dict:
+        """The run's summary, as softshock-solve prints it (units in the names)."""
         return json.loads(self._h5.attrs["summary"])
 
     @property
     def frame_times(self) -> np.ndarray:
+        """The frames' times (s), in frame order."""
         return np.array([self._h5["fields"][k].attrs["time"] for k in self._frames])
 
     def mesh(self) -> Tuple[np.ndarray, np.ndarray]:
@@ -55,6 +59,7 @@ class ResultFile:
         return self._h5["mesh/nodes"][:], self._h5["mesh/triangles"][:]
 
     def series(self) -> Dict[str, np.ndarray]:
+        """Every scalar history by name ("time" in s, "abar", the energies, ...)."""
         return {name: ds[:] for name, ds in self._h5["timeseries"].items()}
 
     def field(self, name: str, frame: int = -1) -> np.ndarray:
@@ -68,4 +73,5 @@ class ResultFile:
         return values[:, :2] if name in NODE_VECTORS else values
 
     def frame_names(self) -> List[str]:
+        """The frames' group names under /fields, in frame order."""
         return list(self._frames)
