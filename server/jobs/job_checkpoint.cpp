@@ -7,6 +7,7 @@
 #include <utility>
 
 #include "server/log.hpp"
+#include "softshock/version.hpp"
 #include "solver/run_summary.hpp"
 
 namespace softshock::server {

@@ -193,6 +193,15 @@ class DashboardTest(DaemonTestCase):
         summary_steps = self.driver.find_element(
             By.CSS_SELECTOR, '#job-summary tr[data-figure="steps"] td:nth-child(2)').text
         self.assertEqual(float(summary_steps), float(c.summary(small.id)["steps"]))
+        # Figures under the names they have with units (a renamed figure shows "—").
+        for figure in ("end_time_s", "wall_time_s", "energy_injected_J_per_m", "grind_ns"):
+            shown = self.driver.find_element(
+                By.CSS_SELECTOR, f'#job-summary tr[data-figure="{figure}"] td:nth-child(2)').text
+            self.assertNotEqual(shown, "\u2014", figure)
+        shown_end = self.driver.find_element(
+            By.CSS_SELECTOR, '#job-summary tr[data-figure="end_time_s"] td:nth-child(2)').text
+        self.assertAlmostEqual(float(shown_end), c.summary(small.id)["end_time_s"],
+                               delta=5e-3 * c.summary(small.id)["end_time_s"])
         # The field: the last frame first, then the slider back to frame 0.
         caption = self.until(lambda: self.driver.find_element(By.ID, "field-caption").text
                              .startswith("frame") and

@@ -171,7 +171,7 @@ TEST_F(ServiceTest, SubmitWatchQueryDelete) {
   ASSERT_TRUE(stub_->GetJobSummary(ctx().get(), sreq, &summary).ok());
   EXPECT_GT(summary.elements(), 100);
   EXPECT_GT(summary.steps(), 0);
-  EXPECT_DOUBLE_EQ(summary.end_time(), 5e-9);
+  EXPECT_DOUBLE_EQ(summary.end_time_s(), 5e-9);
 
   v1::GetTimeSeriesRequest treq;
   treq.set_id(job.id());

@@ -12,8 +12,8 @@ const POLL_MS = 2000;
 export const QUANTITIES = ["max_abar_first_cycle", "max_abar", "abar_end", "abar_at",
                            "max_abar_filtered_first_cycle", "max_abar_filtered",
                            "abar_filtered_end", "max_aspect_ratio", "dominant_mode_end",
-                           "energy_injected", "energy_after_pulse", "shock_at_center",
-                           "wall_time"];
+                           "energy_injected_J_per_m", "energy_after_pulse_J_per_m",
+                           "shock_at_center_s", "wall_time_s"];
 
 export function gridsPage(root, ctx) {
   const msg = el("p", { class: "message", role: "alert" });

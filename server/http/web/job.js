@@ -12,11 +12,11 @@ export const FIELDS = ["J", "mean_stress", "radial_stress", "hoop_stress", "von_
                        "aspect_ratio", "displacement", "velocity"];
 // The summary's figures shown, with units (docs/api.md, JobSummary).
 export const SUMMARY_FIGURES = [
-  ["elements", ""], ["nodes", ""], ["steps", ""], ["end_time", "s"], ["wall_time", "s"],
-  ["energy_injected", "J/m"], ["energy_after_pulse", "J/m"],
+  ["elements", ""], ["nodes", ""], ["steps", ""], ["end_time_s", "s"], ["wall_time_s", "s"],
+  ["energy_injected_J_per_m", "J/m"], ["energy_after_pulse_J_per_m", "J/m"],
   ["max_abar_first_cycle", ""], ["max_abar", ""], ["max_abar_filtered", ""],
-  ["abar_end", ""], ["dominant_mode_end", ""], ["shock_at_center", "s"], ["min_dt", "s"],
-  ["grind_time", "ns"], ["max_aspect_ratio", ""],
+  ["abar_end", ""], ["dominant_mode_end", ""], ["shock_at_center_s", "s"], ["min_dt_s", "s"],
+  ["grind_ns", "ns"], ["max_aspect_ratio", ""],
 ];
 
 // `every` that leaves about `target` samples of a series sampled every `interval` to `end`.
