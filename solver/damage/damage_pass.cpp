@@ -76,8 +76,8 @@ void DamagePass<dim>::update(Positions x, const double* nodal_j) {
   const double* nodal_tensile = nullptr;
   if (nodal_j) {
     for (std::size_t a = 0; a < nn; ++a)
-      nodal_tensile_[a] =
-          nodal_j[a] > 1.0 ? tait_energy(kappa_, tait_n_, nodal_j[a]) : 0.0;  // W_vol+(J_a)
+      nodal_tensile_[a] =  // W_vol+(J_a)
+          tensile_volumetric_energy(tait_energy(kappa_, tait_n_, nodal_j[a]), nodal_j[a]);
     nodal_tensile = nodal_tensile_.data();
   }
   // The history field: the largest driving energy so far (irreversible by construction).
