@@ -7,6 +7,7 @@
 #include <unordered_set>
 
 #include "continuum.hpp"
+#include "damage/damage_model.hpp"
 #include "vector_math.hpp"
 
 namespace softshock {
@@ -46,15 +47,15 @@ inline ElementStress cauchy_stress(const continuum::Mat2& f, double sm, double m
 // The frame's element fields over elements [0, ne): J, aspect ratio, mean, radial, hoop and von
 // Mises stress.
 // volumetric[e]: the element's volumetric mean stress (the nodal-pressure element's), or null for
-// plain P1 (its own Tait stress from J). Blocked like the kernel: indexed loads into small
-// buffers, then a branch-free loop with libmvec's cbrt, exp and log.
-template <bool kPlain>
-inline __attribute__((always_inline)) void element_fields(const ElementGeometry& g,
-                                                          const NodalView& nodes,
-                                                          const ElementState& s,
-                                                          const double* volumetric, double kappa,
-                                                          double n, double mu, double ox, double oy,
-                                                          FieldFrame& fr) {
+// plain P1 (its own Tait stress from J). degradation[e] (kDamaged): the phase-field damage's g_e
+// of the deviatoric and, for P1, the tensile volumetric stress (the nodal one comes degraded).
+// Blocked like the kernel: indexed loads into small buffers, then a branch-free loop with
+// libmvec's cbrt, exp and log.
+template <bool kPlain, bool kDamaged>
+inline __attribute__((always_inline)) void element_fields(
+    const ElementGeometry& g, const NodalView& nodes, const ElementState& s,
+    const double* volumetric, const double* degradation, double kappa, double n, double mu,
+    double ox, double oy, FieldFrame& fr) {
   namespace cm = continuum;
   constexpr std::size_t kBlock = 256;
   alignas(64) double e1x[kBlock], e1y[kBlock], e2x[kBlock], e2y[kBlock], cx[kBlock], cy[kBlock];
@@ -82,12 +83,16 @@ inline __attribute__((always_inline)) void element_fields(const ElementGeometry&
       const cm::Mat2 f = cm::deformation_gradient(
           e1x[k], e1y[k], e2x[k], e2y[k],
           {g.dm_inv_xx[e], g.dm_inv_xy[e], g.dm_inv_yx[e], g.dm_inv_yy[e]});
-      double sm;
+      double sm, mu_e = mu;
       if constexpr (kPlain)
         sm = cm::tait_mean_stress(kappa, n, ::exp(-n * ::log(cm::det(f))));
       else
         sm = volumetric[e];
-      const ElementStress st = cauchy_stress(f, sm, mu, s, e);
+      if constexpr (kDamaged) {
+        mu_e = degradation[e] * mu;
+        if constexpr (kPlain) sm = damage::degraded_mean_stress(sm, degradation[e]);
+      }
+      const ElementStress st = cauchy_stress(f, sm, mu_e, s, e);
       const double r = std::sqrt(cx[k] * cx[k] + cy[k] * cy[k]);
       const double ex = r > 0 ? cx[k] / r : 1, ey = r > 0 ? cy[k] / r : 0;
       out_j[e] = st.j;
@@ -103,12 +108,18 @@ inline __attribute__((always_inline)) void element_fields(const ElementGeometry&
 
 __attribute__((target_clones("avx512f", "avx2", "default"))) void frame_element_fields(
     const ElementGeometry& g, const NodalView& nodes, const ElementState& s,
-    const double* volumetric, double kappa, double n, double mu, double ox, double oy,
-    FieldFrame& fr) {
-  if (volumetric == nullptr)
-    element_fields<true>(g, nodes, s, volumetric, kappa, n, mu, ox, oy, fr);
-  else
-    element_fields<false>(g, nodes, s, volumetric, kappa, n, mu, ox, oy, fr);
+    const double* volumetric, const double* degradation, double kappa, double n, double mu,
+    double ox, double oy, FieldFrame& fr) {
+  if (degradation != nullptr) {
+    if (volumetric == nullptr)
+      element_fields<true, true>(g, nodes, s, volumetric, degradation, kappa, n, mu, ox, oy, fr);
+    else
+      element_fields<false, true>(g, nodes, s, volumetric, degradation, kappa, n, mu, ox, oy, fr);
+  } else if (volumetric == nullptr) {
+    element_fields<true, false>(g, nodes, s, volumetric, degradation, kappa, n, mu, ox, oy, fr);
+  } else {
+    element_fields<false, false>(g, nodes, s, volumetric, degradation, kappa, n, mu, ox, oy, fr);
+  }
 }
 
 }  // namespace
@@ -186,7 +197,10 @@ double Diagnostics::volumetric_mean_stress(const KernelView& kernel, std::size_t
   // The element's own Tait stress blended in (J_e = current / reference area, from pass 1).
   if (w_element > 0) {
     const double kappa = problem_.material.bulk_modulus_Pa, n = problem_.material.tait_n();
-    v += w_element * continuum::tait_mean_stress(kappa, n, std::pow(kernel.element_j[e], -n));
+    double own = continuum::tait_mean_stress(kappa, n, std::pow(kernel.element_j[e], -n));
+    if (kernel.element_degradation)
+      own = damage::degraded_mean_stress(own, kernel.element_degradation[e]);
+    v += w_element * own;
   }
   return v;
 }
@@ -202,10 +216,14 @@ ElementStress Diagnostics::element_stress(const NodalView& nodes, const ElementS
       nodes.y[c] - nodes.y[a], {g.dm_inv_xx[e], g.dm_inv_xy[e], g.dm_inv_yx[e], g.dm_inv_yy[e]});
   const double n = mat.tait_n();
   // Average nodal pressure: the mean stress the kernel applied; plain P1: the element's own.
-  const double sm = nodal_volumetric(kernel)
-                        ? volumetric_mean_stress(kernel, e)
-                        : cm::tait_mean_stress(mat.bulk_modulus_Pa, n, std::pow(cm::det(f), -n));
-  return cauchy_stress(f, sm, mat.shear_modulus_Pa, s, e);
+  const double degradation = kernel.element_degradation ? kernel.element_degradation[e] : 1.0;
+  const double sm =
+      nodal_volumetric(kernel)
+          ? volumetric_mean_stress(kernel, e)
+          : damage::degraded_mean_stress(
+                cm::tait_mean_stress(mat.bulk_modulus_Pa, n, std::pow(cm::det(f), -n)),
+                degradation);
+  return cauchy_stress(f, sm, degradation * mat.shear_modulus_Pa, s, e);
 }
 
 double Diagnostics::kinetic_energy(const NodalView& nodes) const {
@@ -307,8 +325,8 @@ FieldFrame Diagnostics::frame(const NodalView& nodes, const ElementState& s,
     for (std::size_t e = 0; e < ne; ++e) volumetric[e] = volumetric_mean_stress(kernel, e);
   }
   frame_element_fields(geometry_, nodes, s, volumetric.empty() ? nullptr : volumetric.data(),
-                       mat.bulk_modulus_Pa, mat.tait_n(), mat.shear_modulus_Pa, origin_[0],
-                       origin_[1], fr);
+                       kernel.element_degradation, mat.bulk_modulus_Pa, mat.tait_n(),
+                       mat.shear_modulus_Pa, origin_[0], origin_[1], fr);
   return fr;
 }
 

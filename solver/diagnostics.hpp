@@ -26,9 +26,12 @@ struct NodalView {
 // averages), and each element's stabilisation stress s_e and J_e = current / reference area.
 struct KernelView {
   const double* nodal_j = nullptr;
-  const double* nodal_mean_stress = nullptr;
+  const double* nodal_mean_stress = nullptr;  // with damage, the degraded one
   const double* element_stress_shift = nullptr;
   const double* element_j = nullptr;
+  // Phase-field damage: each element's degradation g_e of its deviatoric and tensile volumetric
+  // stress (damage/damage_pass.hpp); null without damage.
+  const double* element_degradation = nullptr;
 };
 
 // Cauchy stress of one element (3x3 plane strain: xx, xy, yy, zz) and its J.

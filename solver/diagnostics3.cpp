@@ -7,6 +7,7 @@
 #include <numeric>
 
 #include "continuum.hpp"
+#include "damage/damage_model.hpp"
 
 namespace softshock {
 namespace {
@@ -109,7 +110,10 @@ double Diagnostics3::volumetric_mean_stress(const KernelView& kernel, std::size_
   double v = w_nodal * nodal_mean;
   if (w_element > 0) {
     const double kappa = problem_.material.bulk_modulus_Pa, n = problem_.material.tait_n();
-    v += w_element * continuum::tait_mean_stress(kappa, n, std::pow(kernel.element_j[e], -n));
+    double own = continuum::tait_mean_stress(kappa, n, std::pow(kernel.element_j[e], -n));
+    if (kernel.element_degradation)
+      own = damage::degraded_mean_stress(own, kernel.element_degradation[e]);
+    v += w_element * own;
   }
   return v;
 }
@@ -129,11 +133,16 @@ ElementStress3 Diagnostics3::element_stress(const NodalView3& nodes, const Tet4S
                                               edge[6], edge[7], edge[8], dm_inv);
   const double j = cm::det(f);
   const double n_tait = mat.tait_n();
-  const double sm = nodal_pressure_ && kernel.nodal_mean_stress != nullptr
-                        ? volumetric_mean_stress(kernel, e)
-                        : cm::tait_mean_stress(mat.bulk_modulus_Pa, n_tait, std::pow(j, -n_tait));
+  // With damage: g_e on the deviatoric and (P1) the tensile volumetric stress.
+  const double degradation = kernel.element_degradation ? kernel.element_degradation[e] : 1.0;
+  const double sm =
+      nodal_pressure_ && kernel.nodal_mean_stress != nullptr
+          ? volumetric_mean_stress(kernel, e)
+          : damage::degraded_mean_stress(
+                cm::tait_mean_stress(mat.bulk_modulus_Pa, n_tait, std::pow(j, -n_tait)),
+                degradation);
   // sigma = sm I + (mu J^-2/3 / J)(B - I1/3 I) + P_v F^T / J, B = F F^T.
-  const double k = mat.shear_modulus_Pa * std::cbrt(1.0 / (j * j)) / j;
+  const double k = degradation * mat.shear_modulus_Pa * std::cbrt(1.0 / (j * j)) / j;
   const double i1 = cm::first_invariant(f);
   auto b = [&](int r, int c) {
     return f[3 * r] * f[3 * c] + f[3 * r + 1] * f[3 * c + 1] + f[3 * r + 2] * f[3 * c + 2];

@@ -152,6 +152,9 @@ ExplicitStep<Element>::ExplicitStep(const Problem& problem, const SolverOptions&
   }
   partial_.resize(threads_);
   pass_seconds_.resize(threads_);
+  if (problem.damage.enabled())
+    damage_ = std::make_unique<damage::DamagePass<kDim>>(problem,
+                                                         nodal_ ? nodal_measure0_.data() : nullptr);
   thread_force_.resize(threads_ > 1 ? threads_ : 0);
   for (auto& f : thread_force_) f.resize(nn);
 }
@@ -213,6 +216,9 @@ void ExplicitStep<Element>::nodal_state(int tid) {  // pass 2: J, mean stress, b
   if (threads_ > 1) sum_threads(thread_measure_, n0, n1, nodal_measure_.data());
   nodal_tait_state(params_.kappa, params_.tait_n, nodal_measure0_.data(), nodal_measure_.data(), n0,
                    n1, nodal_j_.data(), nodal_sm_.data(), nodal_k_.data(), energy_sum(tid));
+  if (damage_)  // the damaged nodes' tension, before anything reads the nodal stress
+    damage_->degrade_nodal_stress(n0, n1, nodal_j_.data(), nodal_sm_.data(),
+                                  sample_ ? &partial_[tid].nodal_energy : nullptr);
   if (beta_kappa_ <= 0)
     Element::pack_nodal_state(nodal_sm_.data(), nodal_k_.data(), n0, n1, rows_.data());
 }
@@ -240,6 +246,16 @@ void ExplicitStep<Element>::element_forces(int tid) {
   Force* out = threads_ > 1 ? thread_force_[tid].data() : force_.data();
   if (threads_ == 1) std::fill(out, out + nn_, Force{});  // else cleared by correct
   Element::element_forces(geometry_, rows_.data(), params_, e0, e1, state_, partial_[tid], out);
+  if (damage_)  // the damaged elements' degraded share of what the loop just added
+    damage_->add_forces(e0, e1, positions(), out,
+                        sample_ ? &partial_[tid].element_energy : nullptr);
+}
+
+template <class Element>
+typename ExplicitStep<Element>::Positions ExplicitStep<Element>::positions() const {
+  Positions x;
+  for (int c = 0; c < kDim; ++c) x[c] = nodes_.x[c].data();
+  return x;
 }
 
 template <class Element>
@@ -272,6 +288,12 @@ void ExplicitStep<Element>::mass_blend_correct(int tid) {
 
 template <class Element>
 KernelTotals ExplicitStep<Element>::evaluate(double t, double dt, bool sample) {
+  // The damage, staggered: every N_d steps, from the state at the start of this one.
+  if (damage_ && dt > 0 && damage_->due()) {
+    const auto start = Clock::now();
+    damage_->update(positions(), nodal_ ? nodal_j_.data() : nullptr);
+    damage_seconds_ += seconds_between(start, Clock::now());
+  }
   dt_ = dt, sample_ = sample;
   params_.dt = dt, params_.sample = sample;
   std::fill(partial_.begin(), partial_.end(), KernelTotals{});  // each thread's sums of this step
@@ -338,6 +360,7 @@ KernelTotals ExplicitStep<Element>::evaluate(double t, double dt, bool sample) {
       }
     }
   }
+  if (damage_ && dt > 0) damage_->advance(dt);
   KernelTotals total;
   for (const auto& k : partial_) {
     if (k.min_step_sq < total.min_step_sq)
@@ -389,6 +412,9 @@ void ExplicitStep<Element>::sample_sums(KernelTotals& totals) const {
                                       problem_.element.element_weight,
                                       problem_.element.stabilization, nodes_)
             .stored_energy;
+  if (damage_)
+    totals.element_energy +=
+        damage_->stored_energy_correction(positions(), nodal_ ? nodal_j_.data() : nullptr);
 }
 
 template <class Element>
@@ -413,9 +439,11 @@ void ExplicitStep<Element>::add_load_work(double& external_work) const {
 
 template <class Element>
 KernelView ExplicitStep<Element>::kernel_view() const {
-  return nodal_
-             ? KernelView{nodal_j_.data(), nodal_sm_.data(), s_element_.data(), j_element_.data()}
+  KernelView view =
+      nodal_ ? KernelView{nodal_j_.data(), nodal_sm_.data(), s_element_.data(), j_element_.data()}
              : KernelView{};
+  if (damage_) view.element_degradation = damage_->element_degradation();
+  return view;
 }
 
 template class ExplicitStep<Tri3>;

@@ -9,6 +9,9 @@
 //   element_forces     the element loop: stress, viscosity, nodal forces, stable step
 //   correct            a+ = M^-1 f, v+ = v* + dt/2 a+
 //   mass_blend_*       the mass blend's element pass and node correction
+// With phase-field damage (Problem::damage, damage/damage_pass.hpp) the damage is updated every
+// N_d steps before the predictor, the nodal state degrades the damaged nodes' tension, and the
+// element forces take off the damaged elements' degraded share; without it none of that runs.
 // With threads, each owns a fixed range of nodes and of elements and adds its elements'
 // contributions into its own nodal arrays, summed in thread order: results depend on the thread
 // count only. The run loop (simulation.cpp) calls evaluate() once a step.
@@ -17,8 +20,10 @@
 #include <array>
 #include <chrono>
 #include <cstdint>
+#include <memory>
 #include <vector>
 
+#include "damage/damage_pass.hpp"
 #include "element_traits.hpp"
 #include "model.hpp"
 #include "run_state.hpp"
@@ -69,6 +74,9 @@ class ExplicitStep {
   // names an array missing or of another size.
   void save_state(std::vector<StateArray>& out) const;
   void restore_state(const std::vector<StateArray>& in);
+  // The phase-field damage (null without it) and the wall time of its updates so far.
+  const damage::DamagePass<kDim>* damage() const { return damage_.get(); }
+  double damage_seconds() const { return damage_seconds_; }
 
  private:
   using Clock = std::chrono::steady_clock;
@@ -95,6 +103,8 @@ class ExplicitStep {
   void correct(int tid);
   void mass_blend_difference(int tid);
   void mass_blend_correct(int tid);
+  using Positions = std::array<const double*, kDim>;  // damage::DamagePass<kDim>::Positions
+  Positions positions() const;
 
   const Problem& problem_;
   const std::size_t nn_, ne_;
@@ -126,6 +136,8 @@ class ExplicitStep {
   std::vector<std::vector<Force>> thread_force_;
   std::vector<KernelTotals> partial_;
   std::vector<std::array<double, kStepPasses>> pass_seconds_;
+  std::unique_ptr<damage::DamagePass<kDim>> damage_;
+  double damage_seconds_ = 0;
   // The step being evaluated.
   double dt_ = 0;
   bool sample_ = false;

@@ -66,6 +66,7 @@ void ExplicitStep<Element>::visit_state(Visit&& visit) {
         std::pair{"element.s", &s_element_}})
     visit(name, v->data(), v->size());
   visit_element_state(state_, visit);
+  if (damage_) damage_->visit_state(visit);  // d, H, degradations and the staggering's counters
 }
 
 template <class Element>

@@ -79,6 +79,36 @@ struct PressurePulse {
   double impulse_Pa_s() const;  // integral of p over time
 };
 
+// Phase-field gradient damage (docs/model.md, "Damage"; solver/damage/). Both models solve, in
+// the damage d (model 2's c = 1 - d), zeta dd/dt + (s + 2H) d - s l^2 Lap d = 2H with H the
+// largest tension-only driving energy so far, and degrade the deviatoric and tensile volumetric
+// stress by (1 - d)^2.
+enum class DamageModel {
+  kNone,        // no damage: the run is exactly the undamaged one
+  kTalamini,    // model 1 (Talamini, Mao & Anand 2018): s = eps_f, H above eps_f / 2, viscous
+  kGiovanardi,  // model 2 (Giovanardi, Scotti & Formaggia 2017, AT2): s = G / eps, no threshold
+};
+
+// How the damage equation's sparse SPD system is solved (damage_solver.hpp).
+enum class DamageLinearSolver {
+  kAuto,       // direct up to kDirectMaxNodes nodes, iterative above
+  kDirect,     // Eigen's SimplicialLDLT (pattern analysed once)
+  kIterative,  // Eigen's ConjugateGradient with IncompleteCholesky, warm-started from d
+};
+
+struct Damage {
+  DamageModel model = DamageModel::kNone;
+  double length_m = 5e-6;  // l (model 1) or eps (model 2): the regularisation length
+  // Model 1: the critical energy density; the threshold is eps_f / 2 and G_c = eps_f l.
+  // 2 MPa with l = 5 um is G_c = 10 J/m^2, a brittle hydrogel's (docs/model.md).
+  double epsilon_f_Pa = 2e6;
+  double fracture_energy_J_m2 = 10.0;  // model 2: G (G_c for a converged sharp crack)
+  double zeta_Pa_s = 0.0;              // model 1: the damage viscosity (0: rate independent)
+  int update_every = 4;                // N_d: mechanical steps per damage update
+  DamageLinearSolver linear_solver = DamageLinearSolver::kAuto;
+  bool enabled() const { return model != DamageModel::kNone; }
+};
+
 // Everything a run needs besides the numerical options.
 struct Problem {
   Mesh mesh;
@@ -87,6 +117,7 @@ struct Problem {
   Element element;
   PressurePulse load;
   LoadPerturbation perturbation;
+  Damage damage;  // none by default
   // Facets carrying the follower pressure: edges (2-D, body on the left) or faces (3-D,
   // outward); empty = every boundary facet.
   std::vector<std::array<int32_t, 2>> loaded_edges;

@@ -30,6 +30,9 @@ constexpr double kC1 = ArtificialViscosity{}.c1, kC2 = ArtificialViscosity{}.c2,
                  kRamp = ArtificialViscosity{}.ramp;
 constexpr double kElementWeight = Element{}.element_weight,
                  kStabilization = Element{}.stabilization, kMassBlend = Element{}.mass_blend;
+constexpr double kDamageLength = Damage{}.length_m, kEpsilonF = Damage{}.epsilon_f_Pa,
+                 kFractureEnergy = Damage{}.fracture_energy_J_m2, kZeta = Damage{}.zeta_Pa_s;
+constexpr int kDamageUpdateEvery = Damage{}.update_every;
 constexpr double kRoughness = 3e-4;
 constexpr int kRoughnessMinMode = 2, kRoughnessMaxMode = 16;
 constexpr double kStripWavelength = 10e-6, kStripHeight = 40e-6, kStripAmplitude = 50e-9;
@@ -82,6 +85,20 @@ void set_parameters(const v1::RunSpec& s, Problem& p) {
   if (l.shape() == v1::QUADRATIC) shape = PulseShape::kQuadratic;
   p.load = {shape, l.pressure(), l.duration()};
   p.perturbation = {l.perturbation().mode(), l.perturbation().amplitude()};
+  if (s.has_damage()) {
+    const auto& d = s.damage();
+    p.damage.model = d.model() == v1::TALAMINI     ? DamageModel::kTalamini
+                     : d.model() == v1::GIOVANARDI ? DamageModel::kGiovanardi
+                                                   : DamageModel::kNone;
+    p.damage.length_m = d.length();
+    p.damage.epsilon_f_Pa = d.epsilon_f();
+    p.damage.fracture_energy_J_m2 = d.fracture_energy();
+    p.damage.zeta_Pa_s = d.zeta();
+    p.damage.update_every = d.update_every();
+    p.damage.linear_solver = d.linear_solver() == v1::DIRECT      ? DamageLinearSolver::kDirect
+                             : d.linear_solver() == v1::ITERATIVE ? DamageLinearSolver::kIterative
+                                                                  : DamageLinearSolver::kAuto;
+  }
 }
 
 // The planar Richtmyer-Meshkov target: sliding walls at both sides, the pulse on the bottom,
@@ -275,6 +292,20 @@ v1::RunSpec with_defaults(const v1::RunSpec& in) {
   if (!r->has_modes()) r->set_modes(kModes);
   if (!r->has_threads()) r->set_threads(kThreads);
   if (!r->has_max_aspect_ratio()) r->set_max_aspect_ratio(kMaxAspectRatio);
+  // Damage: absent unless a model is asked for, so that a spec without damage (or with model NONE)
+  // normalises to exactly what it did before damage existed (the same stored spec and hash).
+  if (s.has_damage() &&
+      (s.damage().model() == v1::NONE || s.damage().model() == v1::DAMAGE_MODEL_UNSPECIFIED))
+    s.clear_damage();
+  if (s.has_damage()) {
+    auto* d = s.mutable_damage();
+    if (!d->has_length()) d->set_length(kDamageLength);
+    if (!d->has_epsilon_f()) d->set_epsilon_f(kEpsilonF);
+    if (!d->has_fracture_energy()) d->set_fracture_energy(kFractureEnergy);
+    if (!d->has_zeta()) d->set_zeta(kZeta);
+    if (!d->has_update_every()) d->set_update_every(kDamageUpdateEvery);
+    if (d->linear_solver() == v1::DAMAGE_LINEAR_SOLVER_UNSPECIFIED) d->set_linear_solver(v1::AUTO);
+  }
   return s;
 }
 
@@ -426,6 +457,22 @@ void validate_spec(const v1::RunSpec& s, const SpecLimits& limits) {
   require(r.max_aspect_ratio() == 0 || (std::isfinite(r.max_aspect_ratio()) &&
                                         r.max_aspect_ratio() > kEquilateralAspectRatio),
           "run.max_aspect_ratio", "must be 0 (no limit) or > 1.1547 (an equilateral triangle's)");
+
+  if (s.has_damage()) {
+    const auto& d = s.damage();
+    require(v1::DamageModel_IsValid(d.model()) && d.model() != v1::DAMAGE_MODEL_UNSPECIFIED,
+            "damage.model", "must be NONE, TALAMINI or GIOVANARDI");
+    require_finite_positive(d.length(), "damage.length");
+    require_finite_positive(d.epsilon_f(), "damage.epsilon_f");
+    require_finite_positive(d.fracture_energy(), "damage.fracture_energy");
+    require(std::isfinite(d.zeta()) && d.zeta() >= 0, "damage.zeta",
+            "must be a finite number >= 0 (Pa s)");
+    require(d.update_every() >= 1 && d.update_every() <= 10000, "damage.update_every",
+            "must be between 1 and 10000 (mechanical steps)");
+    require(v1::DamageLinearSolver_IsValid(d.linear_solver()) &&
+                d.linear_solver() != v1::DAMAGE_LINEAR_SOLVER_UNSPECIFIED,
+            "damage.linear_solver", "must be AUTO, DIRECT or ITERATIVE");
+  }
 }
 
 v1::RunSpec normalize_spec(const v1::RunSpec& spec, const SpecLimits& limits) {

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <numbers>
 #include <sstream>
 
 namespace softshock {
@@ -123,6 +124,20 @@ RunSummary summarize(const Problem& problem, const RunResult& r) {
     }
   }
 
+  // Phase-field damage: the damaged zone's onset and its largest size.
+  if (h.damage && h.damaged_volume.size() == n) {
+    s.damage = true;
+    s.damage_time_s = r.damage_time_s;
+    s.damage_solves = r.damage_solves;
+    for (std::size_t k = 0; k < n; ++k) {
+      if (s.damage_onset_s < 0 && h.damaged_volume[k] > 0) s.damage_onset_s = h.time[k];
+      s.max_damaged_volume = std::max(s.max_damaged_volume, h.damaged_volume[k]);
+    }
+    s.max_damaged_radius_m = std::sqrt(per_metre * s.max_damaged_volume / std::numbers::pi);
+    s.damage_dissipation_J_per_m = per_metre * h.damage_dissipation.back();
+    s.crack_energy_J_per_m = per_metre * h.crack_energy.back();
+  }
+
   // Dominant rim mode at the end: the largest amplitude among modes >= 2 (0 is the uniform
   // expansion, 1 a rigid shift).
   const auto& last = h.modes.back();
@@ -225,7 +240,16 @@ std::string summary_to_json(const RunSummary& s) {
     << ",\"output_share\":" << number(s.output_share())
     << ",\"meshing_time_s\":" << number(s.meshing_time_s)
     << ",\"meshing_share\":" << number(s.meshing_share()) << ",\"mesh_cache\":\"" << s.mesh_cache
-    << "\"}";
+    << "\"";
+  if (s.damage)
+    o << ",\"damage_onset_s\":" << number(s.damage_onset_s)
+      << ",\"max_damaged_volume\":" << number(s.max_damaged_volume)
+      << ",\"max_damaged_radius_m\":" << number(s.max_damaged_radius_m)
+      << ",\"damage_dissipation_J_per_m\":" << number(s.damage_dissipation_J_per_m)
+      << ",\"crack_energy_J_per_m\":" << number(s.crack_energy_J_per_m)
+      << ",\"damage_time_s\":" << number(s.damage_time_s)
+      << ",\"damage_solves\":" << s.damage_solves;
+  o << "}";
   return o.str();
 }
 

@@ -58,6 +58,19 @@ struct RunSummary {
   double shock_at_center_s = -1;          // focusing: first minimum of centre mean stress
   std::vector<double> rim_reflections_s;  // peaks of the outward rim acceleration
   double min_dt_s = 0, max_dt_s = 0;
+  // Phase-field damage (written to the JSON only for a run with damage): when the damaged zone
+  // (d >= 1/2, History::damaged_volume) first appears (-1 = never), its largest measure (2-D: area,
+  // m^2; 3-D: volume, m^3) and the radius of the disk of that area per unit thickness (3-D: the
+  // volume over the z extent), the stored energy the damage released and the crack energy at
+  // the end (per metre), and the wall time and number of its updates.
+  bool damage = false;
+  double damage_onset_s = -1;
+  double max_damaged_volume = 0;
+  double max_damaged_radius_m = 0;
+  double damage_dissipation_J_per_m = 0;
+  double crack_energy_J_per_m = 0;
+  double damage_time_s = 0;
+  int64_t damage_solves = 0;
   std::string status;  // "completed", "cancelled", "failed"
   std::string error;
   std::string failure;  // "failed": its cause (failure_name, e.g. "MESH_DISTORTION"); else empty

@@ -17,26 +17,34 @@
 namespace softshock {
 
 std::vector<std::pair<std::string, const std::vector<double>*>> History::columns() const {
-  return {{"time", &time},
-          {"kinetic_energy", &kinetic_energy},
-          {"elastic_energy", &elastic_energy},
-          {"dissipated_energy", &dissipated_energy},
-          {"external_work", &external_work},
-          {"abar", &abar},
-          {"center_mean_stress", &center_mean_stress},
-          {"rim_mean_radial_displacement", &rim_mean_radial_displacement},
-          {"rim_mean_radial_velocity", &rim_mean_radial_velocity},
-          {"rim_mean_radial_acceleration", &rim_mean_radial_acceleration},
-          {"rim_min_hoop_stress", &rim_min_hoop_stress},
-          {"dt", &dt},
-          {"abar_filtered", &abar_filtered},
-          {"max_aspect_ratio", &max_aspect_ratio},
-          {"dt_element", &dt_element},
-          {"dt_element_aspect_ratio", &dt_element_aspect_ratio},
-          {"dt_element_j", &dt_element_j},
-          {"dt_element_on_rim", &dt_element_on_rim},
-          {"min_dt", &min_dt},
-          {"min_dt_element", &min_dt_element}};
+  std::vector<std::pair<std::string, const std::vector<double>*>> out = {
+      {"time", &time},
+      {"kinetic_energy", &kinetic_energy},
+      {"elastic_energy", &elastic_energy},
+      {"dissipated_energy", &dissipated_energy},
+      {"external_work", &external_work},
+      {"abar", &abar},
+      {"center_mean_stress", &center_mean_stress},
+      {"rim_mean_radial_displacement", &rim_mean_radial_displacement},
+      {"rim_mean_radial_velocity", &rim_mean_radial_velocity},
+      {"rim_mean_radial_acceleration", &rim_mean_radial_acceleration},
+      {"rim_min_hoop_stress", &rim_min_hoop_stress},
+      {"dt", &dt},
+      {"abar_filtered", &abar_filtered},
+      {"max_aspect_ratio", &max_aspect_ratio},
+      {"dt_element", &dt_element},
+      {"dt_element_aspect_ratio", &dt_element_aspect_ratio},
+      {"dt_element_j", &dt_element_j},
+      {"dt_element_on_rim", &dt_element_on_rim},
+      {"min_dt", &min_dt},
+      {"min_dt_element", &min_dt_element}};
+  if (damage) {
+    out.insert(out.end(), {{"damaged_volume", &damaged_volume},
+                           {"max_damage", &max_damage},
+                           {"crack_energy", &crack_energy},
+                           {"damage_dissipation", &damage_dissipation}});
+  }
+  return out;
 }
 
 std::string series_units(std::string_view name) {
@@ -61,6 +69,10 @@ std::string series_units(std::string_view name) {
       {"dt_element_on_rim", "1"},
       {"min_dt", "s"},
       {"min_dt_element", "1"},
+      {"damaged_volume", "m^2"},
+      {"max_damage", "1"},
+      {"crack_energy", "J/m"},
+      {"damage_dissipation", "J/m"},
   };
   for (const auto& [n, u] : kUnits)
     if (n == name) return std::string(u);
@@ -170,6 +182,7 @@ RunResult run_elements(const Problem& problem, const SolverOptions& options,
   const typename Element::Diagnostics diagnostics(problem, step.geometry(), options.modes);
 
   RunResult result;
+  result.history.damage = step.damage() != nullptr;
   const auto view = step.view();
   const KernelView kernel_view = step.kernel_view();
   double t = 0.0, dissipated = 0.0, external_work = 0.0;
@@ -194,6 +207,7 @@ RunResult run_elements(const Problem& problem, const SolverOptions& options,
     }
     diagnostics.sample(view, step.state(), kernel_view, totals, t, dt_stable, dissipated,
                        external_work, result.history);
+    if (step.damage()) step.damage()->sample(result.history);
     result.history.min_dt.push_back(interval_min_dt);
     result.history.min_dt_element.push_back(static_cast<double>(interval_min_element));
     interval_min_dt = std::numeric_limits<double>::infinity(), interval_min_element = -1;
@@ -204,6 +218,7 @@ RunResult run_elements(const Problem& problem, const SolverOptions& options,
     FieldFrame frame =
         diagnostics.frame(view, step.state(), kernel_view, t,
                           control.spare_frame ? control.spare_frame() : FieldFrame{});
+    if (step.damage()) frame.damage = step.damage()->damage();
     const auto handed = Clock::now();
     result.diagnostics_time_s += seconds_between(start, handed);
     control.on_frame(std::move(frame));
@@ -404,6 +419,10 @@ RunResult run_elements(const Problem& problem, const SolverOptions& options,
       result.pass_time_s[k] = std::max(result.pass_time_s[k], before.pass_time_s[k] + seconds[k]);
     }
     result.kernel_time_s = std::max(result.kernel_time_s, before.kernel_time_s + kernel);
+  }
+  if (step.damage()) {
+    result.damage_time_s = step.damage_seconds();
+    result.damage_solves = step.damage()->solves();
   }
   result.diagnostics_time_s += before.diagnostics_time_s;
   result.output_time_s += before.output_time_s;

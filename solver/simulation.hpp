@@ -48,6 +48,16 @@ struct History {
   std::vector<std::vector<double>> modes;
   // 3-D only (empty in 2-D): the same over the whole lateral surface, averaged over the thickness.
   std::vector<std::vector<double>> modes_z_mean;
+  // Phase-field damage (Problem::damage; empty without it, and then not among columns()): the
+  // damaged zone's reference area (2-D, m^2; 3-D volume, m^3), the nodes' lumped volumes where
+  // d >= 1/2; the largest d; the regularised crack's energy, the integral of s/2 (d^2 +
+  // l^2 |grad d|^2) (J/m); the stored energy the damage has released so far, which the energy
+  // balance books as dissipated (J/m).
+  bool damage = false;
+  std::vector<double> damaged_volume;
+  std::vector<double> max_damage;
+  std::vector<double> crack_energy;
+  std::vector<double> damage_dissipation;
 
   std::size_t size() const { return time.size(); }
   // Names and columns of the scalar series, in a fixed order (for writers and clients).
@@ -76,6 +86,8 @@ struct FieldFrame {
   // Longest edge / smallest altitude of the current shape (a triangle's longest edge^2 /
   // (2 area); equilateral 1.1547, regular tetrahedron 1.2247)
   std::vector<double> aspect_ratio;
+  // Phase-field damage d per node (model 2: 1 - c); empty without damage.
+  std::vector<double> damage;
 };
 
 struct Progress {
@@ -140,6 +152,10 @@ struct RunResult {
   double diagnostics_time_s = 0, output_time_s = 0;
   double min_dt_s = 0, max_dt_s = 0;
   std::size_t frames_written = 0;
+  // Phase-field damage: the wall time of its updates (the driver, the solve, the degradations;
+  // the degradation's node and element passes are in their passes' times) and their number.
+  double damage_time_s = 0;
+  int64_t damage_solves = 0;
 };
 
 struct RunControl {

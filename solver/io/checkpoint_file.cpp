@@ -370,6 +370,7 @@ void write_checkpoint(const std::string& path, const Checkpoint& c) {
     w.f64("loop.pass_time_s", std::vector<double>(s.pass_time_s.begin(), s.pass_time_s.end()));
     w.i64("loop.stopped", s.stopped ? 1 : 0);
 
+    w.i64("history.damage", s.history.damage ? 1 : 0);  // it decides which columns there are
     for (const auto& [name, column] : s.history.columns()) w.f64("history." + name, *column);
     std::size_t cols = 0;
     w.f64("history.modes", flatten(s.history.modes, cols));
@@ -481,7 +482,9 @@ Checkpoint read_checkpoint(const std::string& path) {
   s.stopped = r.i64("loop.stopped") != 0;
   if (s.frames_written != h.frame_times.size()) r.bad("its frame count and frame times disagree");
 
-  // columns() lists the History's own series; they belong to `s`, which is not const.
+  // columns() lists the History's own series (the damage ones with damage); they belong to `s`,
+  // which is not const. Files from before damage existed have no flag and no damage.
+  s.history.damage = r.has("history.damage") && r.i64("history.damage") != 0;
   for (const auto& [name, column] : s.history.columns())
     *const_cast<std::vector<double>*>(column) = r.f64s("history." + name);
   s.history.modes = unflatten(r, "history.modes");

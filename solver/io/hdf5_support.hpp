@@ -44,6 +44,10 @@ inline constexpr std::array<FieldSpec, 8> kFields{{
     {"aspect_ratio", false, &FieldFrame::aspect_ratio, "1"},
 }};
 
+// The phase-field damage d, one value per node (N, also in 3-D), in every frame of a run with
+// damage and in none without (FieldFrame::damage empty).
+inline constexpr FieldSpec kDamageField{"damage", true, &FieldFrame::damage, "1"};
+
 // "frame_00042": the group of frame k under /fields.
 std::string frame_group_name(std::size_t k);
 

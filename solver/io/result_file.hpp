@@ -106,7 +106,7 @@ class ResultReader {
   // A field of frame k: "displacement" and "velocity" are N x dimension interleaved (2-D: N x 2
   // whatever the format_version, the stored z = 0 column of version 2 dropped; 3-D: N x 3);
   // "J", "mean_stress", "radial_stress", "hoop_stress", "von_mises", "aspect_ratio" are per
-  // element.
+  // element; "damage" (runs with phase-field damage only) per node, N values.
   std::vector<double> field(std::size_t frame, const std::string& name) const;
 
  private:

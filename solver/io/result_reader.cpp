@@ -397,7 +397,8 @@ std::vector<double> ResultReader::slice(const std::string& dataset, const Slice&
 std::vector<double> ResultReader::field(std::size_t frame, const std::string& name) const {
   const auto known = std::find_if(kFields.begin(), kFields.end(),
                                   [&](const FieldSpec& f) { return name == f.name; });
-  if (known == kFields.end()) {
+  const bool damage = name == kDamageField.name;  // N values (a run with damage only)
+  if (known == kFields.end() && !damage) {
     throw std::invalid_argument("ResultReader::field: unknown field '" + name + "'");
   }
   if (frame >= impl_->info.frame_times.size()) {
@@ -409,7 +410,7 @@ std::vector<double> ResultReader::field(std::size_t frame, const std::string& na
   const std::string dataset = "/fields/" + frame_group_name(frame) + "/" + name;
   std::vector<double> v =
       read_all<double>(impl_->file.get(), dataset, H5T_NATIVE_DOUBLE, impl_->path, &dims);
-  if (!known->nodal) return v;
+  if (damage || !known->nodal) return v;
   const std::size_t cols = dims.size() == 2 ? static_cast<std::size_t>(dims[1]) : 0;
   if (impl_->info.dimension == 3) {  // N x 3 on disk and in memory: the z column is data
     if (cols != kVectorColumns) {

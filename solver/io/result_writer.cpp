@@ -28,7 +28,8 @@ namespace detail {
 std::string xdmf_document(const std::string& h5_file, int dimension, std::size_t nodes,
                           std::size_t elements, const std::vector<std::string>& frame_groups,
                           const std::vector<double>& frame_times,
-                          const std::vector<std::pair<std::string, bool>>& attributes);
+                          const std::vector<std::pair<std::string, bool>>& attributes,
+                          const std::vector<std::string>& node_scalars);
 }  // namespace detail
 
 using namespace h5;
@@ -180,6 +181,7 @@ void write_double_attr(hid_t obj, const char* name, double value, const std::str
 std::string stored_series_units(const std::string& name, int dimension) {
   std::string units = series_units(name);
   if (dimension == 3 && units == "J/m") units = "J";
+  if (dimension == 3 && units == "m^2") units = "m^3";  // the damaged zone's measure
   return units;
 }
 
@@ -224,6 +226,7 @@ struct ResultWriter::Impl {
   std::vector<std::string> frame_groups;
   std::vector<double> frame_times;
   std::vector<double> xyz;  // 2-D: a node vector padded with z = 0, reused across frames
+  bool damage = false;      // the frames carry the damage (kDamageField), every one of them
   bool finished = false;
   bool mesh_written = false;  // write_mesh(): finish() refuses a file without its mesh
   std::string broken;  // set when an operation failed half-way: the file is not to be trusted
@@ -463,6 +466,14 @@ void ResultWriter::write_frame(const FieldFrame& frame) {
                                   std::to_string(expected));
     }
   }
+  // The damage: in every frame of a run with damage, in none of one without.
+  const bool damage = !(frame.*kDamageField.member).empty();
+  if (damage && (frame.*kDamageField.member).size() != m.nodes)
+    throw std::invalid_argument("ResultWriter::write_frame: field damage has " +
+                                std::to_string((frame.*kDamageField.member).size()) +
+                                " values, expected " + std::to_string(m.nodes));
+  if (!m.frame_groups.empty() && damage != m.damage)
+    throw std::invalid_argument("ResultWriter::write_frame: the damage field in some frames only");
   const std::string name = frame_group_name(m.frame_groups.size());
   const std::string& path = m.tmp_name;
   {
@@ -470,6 +481,9 @@ void ResultWriter::write_frame(const FieldFrame& frame) {
     try {
       Hid g = create_group(m.fields.get(), name.c_str(), path, false);
       write_double_attr(g.get(), "time", frame.time_s, path);
+      if (damage)
+        write_doubles(g.get(), kDamageField.name, (frame.*kDamageField.member).data(),
+                      vector_shape(m.nodes), kDamageField.units, path);
       for (const FieldSpec& f : kFields) {
         const std::vector<double>& v = frame.*f.member;
         if (!f.nodal) {
@@ -496,6 +510,7 @@ void ResultWriter::write_frame(const FieldFrame& frame) {
   }  // the HDF5 lock: other runs' files need it, the sync below does not
   m.frame_groups.push_back("/fields/" + name);
   m.frame_times.push_back(frame.time_s);
+  m.damage = damage;
   // The frame's data is with the OS: written to the disk here, on the writer thread beside the
   // run, rather than all in finish()'s fsync, which the run waits for (t-bar = 4 point, 17 MB:
   // 15 ms, and 1.7 ms with ~2 ms per frame here, measured; sync_file_range's writeback alone left
@@ -646,8 +661,11 @@ void ResultWriter::finish(const History& history, const RunSummary& summary, boo
     fsync_path(m.tmp_h5, false);
     std::vector<std::pair<std::string, bool>> attributes;
     for (const FieldSpec& f : kFields) attributes.emplace_back(f.name, f.nodal);
-    write_file_synced(m.tmp_xdmf, detail::xdmf_document(kH5Name, m.dimension, m.nodes, m.elements,
-                                                        m.frame_groups, m.frame_times, attributes));
+    std::vector<std::string> node_scalars;
+    if (m.damage) node_scalars.emplace_back(kDamageField.name);
+    write_file_synced(
+        m.tmp_xdmf, detail::xdmf_document(kH5Name, m.dimension, m.nodes, m.elements, m.frame_groups,
+                                          m.frame_times, attributes, node_scalars));
     rename_file(m.tmp_h5, m.final_h5);
     rename_file(m.tmp_xdmf, m.final_xdmf);
     fsync_path(m.dir, true);

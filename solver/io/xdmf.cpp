@@ -58,11 +58,13 @@ std::string mesh_elements(const std::string& h5_file, int dimension, std::size_t
 // frame_groups[k] is the group path of frame k (e.g. "/fields/frame_00000") and frame_times[k]
 // its time. attributes: (dataset name, node-centred); node-centred fields are N x 3 vectors (in
 // 2-D with z = 0: ParaView's Xdmf3 readers and Warp By Vector need three components), the
-// others per-element scalars.
+// others per-element scalars. node_scalars: datasets of one value per node (the damage), in
+// every frame.
 std::string xdmf_document(const std::string& h5_file, int dimension, std::size_t nodes,
                           std::size_t elements, const std::vector<std::string>& frame_groups,
                           const std::vector<double>& frame_times,
-                          const std::vector<std::pair<std::string, bool>>& attributes) {
+                          const std::vector<std::pair<std::string, bool>>& attributes,
+                          const std::vector<std::string>& node_scalars) {
   if (dimension != 2 && dimension != 3) {
     throw std::invalid_argument("XDMF: dimension " + std::to_string(dimension) + ", not 2 or 3");
   }
@@ -94,6 +96,12 @@ std::string xdmf_document(const std::string& h5_file, int dimension, std::size_t
         x += "        <Attribute Name=\"" + field + "\" AttributeType=\"" +
              (nodal ? "Vector\" Center=\"Node\">\n" : "Scalar\" Center=\"Cell\">\n");
         x += data_item(h5_file, group + "/" + field, nodal ? n + " 3" : e, false, "          ");
+        x += "        </Attribute>\n";
+      }
+      for (const std::string& field : node_scalars) {
+        x +=
+            "        <Attribute Name=\"" + field + "\" AttributeType=\"Scalar\" Center=\"Node\">\n";
+        x += data_item(h5_file, group + "/" + field, n, false, "          ");
         x += "        </Attribute>\n";
       }
       x += "      </Grid>\n";

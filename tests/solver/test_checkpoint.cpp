@@ -34,6 +34,8 @@ bool same_bits(const std::vector<double>& a, const std::vector<double>& b) {
 // Every series and mode table of two histories, bit for bit; names the first that differs.
 std::string history_difference(const History& a, const History& b) {
   const auto ca = a.columns(), cb = b.columns();
+  if (ca.size() != cb.size())
+    return "the columns (" + std::to_string(ca.size()) + " vs " + std::to_string(cb.size()) + ")";
   for (std::size_t k = 0; k < ca.size(); ++k)
     if (!same_bits(*ca[k].second, *cb[k].second)) return ca[k].first;
   if (a.modes.size() != b.modes.size()) return "modes";
@@ -55,7 +57,8 @@ std::string frame_difference(const FieldFrame& a, const FieldFrame& b) {
       {"radial_stress", &FieldFrame::radial_stress},
       {"hoop_stress", &FieldFrame::hoop_stress},
       {"von_mises", &FieldFrame::von_mises},
-      {"aspect_ratio", &FieldFrame::aspect_ratio}};
+      {"aspect_ratio", &FieldFrame::aspect_ratio},
+      {"damage", &FieldFrame::damage}};
   for (const auto& [name, member] : fields)
     if (!same_bits(a.*member, b.*member)) return name;
   return "";
@@ -103,6 +106,9 @@ TEST_P(CheckpointBitwise, ContinuedRunsEqualTheRunThatNeverStopped) {
   ASSERT_EQ(reference.result.status, RunStatus::kCompleted) << reference.result.error;
   const int64_t steps = reference.result.steps;
   ASSERT_GT(steps, 20);
+  if (reference.result.history.damage) {  // the damage case must damage, or it shows nothing
+    ASSERT_GT(reference.result.history.damage_dissipation.back(), 0.0);
+  }
 
   // Checkpoints every step: taking them must not change the run.
   const Outcome taken = run(problem, options, [](const Progress&) { return true; });
@@ -181,6 +187,13 @@ INSTANTIATE_TEST_SUITE_P(
                       Case{"disk_threads2",
                            R"({"geometry":{"disk":{"radius":9e-5},"target_elements":400},
              "run":{"end_time":2e-8,"output_interval":5e-9,"history_interval":1e-9}})",
+                           2},
+                      // Damage from the release tension at the rim (~10 ns), updated every
+                      // 3 steps: d, H and the staggering's counters must come back too.
+                      Case{"disk_damage",
+                           R"({"geometry":{"disk":{"radius":9e-5},"target_elements":400},
+             "run":{"end_time":2e-8,"output_interval":5e-9,"history_interval":1e-9},
+             "damage":{"model":"TALAMINI","update_every":3}})",
                            2},
                       Case{"cylinder_threads2",
                            R"({"geometry":{"cylinder":{"radius":9e-5,"thickness":1.2e-5},
