@@ -5,6 +5,7 @@
 #include <numbers>
 
 #include "solver/continuum.hpp"
+#include "solver/damage/damage_solver.hpp"
 #include "solver/integrator.hpp"
 
 namespace softshock {
@@ -25,14 +26,42 @@ constexpr double kFrameOverheadBytes = 16e3;
 // Mesh in the result file: nodes (2 doubles) and triangles (3 int32) per element, roughly.
 constexpr double kMeshBytesPerElement = 0.5 * 16 + 12;
 
-// Tetrahedra: the peak resident size of softshock-solve with frames was 62 MB at 100k and 181 MB
-// at 400k (2026-12-04): 395 B per tetrahedron over ~22 MB; taken as 480 B over the daemon's fixed
-// part. Nodes per tetrahedron: 0.19-0.21 on the extruded ring, Gmsh and box meshes; 0.22 here.
-constexpr double kBytesPerTetrahedron = 480;
+// Tetrahedra: softshock-solve's peak resident size (2026-12-05, docs/deploy.md) was 22.6 / 29.6 /
+// 67.6 / 189.0 MB at 5,340 / 19,332 / 104,292 / 403,218 tetrahedra of the generated cylinder
+// (~20 MB fixed, 400-460 B per tetrahedron; the box alike), and 75.7 / 110.5 MB at 20,250 /
+// 105,456 tetrahedra read from a .msh file, which loads Gmsh into the process (~67 MB fixed).
+// Taken as 24 MB (70 MB with Gmsh) and 460 B per tetrahedron, plus a frame's fields.
+constexpr double kFixedBytes3d = 24e6;
+constexpr double kFixedBytes3dWithGmsh = 70e6;
+constexpr double kBytesPerTetrahedron = 460;
+// Phase-field damage: its matrix, the pattern's analysis and the solver's vectors took +10 / +35 /
+// +206 MB at 19k tetrahedra / 66k triangles / 403k tetrahedra (520-530 B per element), taken as
+// 600 B; the direct solver's LDLT factor (up to kDirectMaxNodes nodes) another +46 / +131 MB on
+// 21.8k / 33.3k-node tetrahedral meshes (~ nodes^2.5; the triangles' factor is within the 600 B).
+constexpr double kDamageBytesPerElement = 600;
+constexpr double kDamageFactorBytes3d = 55e6;  // at kDamageFactorNodes3d nodes, ~ nodes^2.5
+constexpr double kDamageFactorNodes3d = 21800;
 constexpr double kNodesPerTetrahedron = 0.22;
 constexpr double kFrameBytesPerTetrahedron = 6 * 8 + kNodesPerTetrahedron * 2 * 3 * 8;
 // Nodes (3 doubles), tetrahedra (4 int32), boundary faces (3 int32, ~0.1 per tetrahedron).
 constexpr double kMeshBytesPerTetrahedron = kNodesPerTetrahedron * 24 + 16 + 0.1 * 12;
+
+bool has_damage(const v1::RunSpec& spec) {
+  return spec.has_damage() && spec.damage().model() != v1::NONE &&
+         spec.damage().model() != v1::DAMAGE_MODEL_UNSPECIFIED;
+}
+
+// The damage's memory (0 without it): per element, and in 3-D the direct solver's factor.
+double damage_bytes(const v1::RunSpec& spec, double elements, double nodes, int dim) {
+  if (!has_damage(spec)) return 0;
+  double bytes = kDamageBytesPerElement * elements;
+  const auto solver = spec.damage().linear_solver();
+  const bool direct =
+      solver == v1::DIRECT || (solver != v1::ITERATIVE && nodes <= damage::kDirectMaxNodes);
+  if (dim == 3 && direct)
+    bytes += kDamageFactorBytes3d * std::pow(nodes / kDamageFactorNodes3d, 2.5);
+  return bytes;
+}
 
 }  // namespace
 
@@ -118,7 +147,7 @@ ResourceEstimate estimate_resources(const v1::RunSpec& spec, double elements, do
       r.output_interval() > 0 ? std::floor(r.end_time() / r.output_interval()) + 1 : 0;
   // The history is kept while running and copied once when the file is finished.
   e.memory_bytes = kFixedBytes + kBytesPerElement * elements + 2 * history_bytes +
-                   kFrameBytesPerElement * elements;
+                   kFrameBytesPerElement * elements + damage_bytes(spec, elements, elements / 2, 2);
   e.disk_bytes = frames * (kFrameBytesPerElement * elements + kFrameOverheadBytes) + history_bytes +
                  kMeshBytesPerElement * elements;
   return e;
@@ -134,8 +163,12 @@ ResourceEstimate estimate_resources_3d(const v1::RunSpec& spec, double elements,
   const double history_bytes = samples * (kHistoryColumns + 2 * (r.modes() + 1)) * 8;
   const double frames =
       r.output_interval() > 0 ? std::floor(r.end_time() / r.output_interval()) + 1 : 0;
-  e.memory_bytes = kFixedBytes + kBytesPerTetrahedron * elements + 2 * history_bytes +
-                   kFrameBytesPerTetrahedron * elements;
+  const double fixed = !spec.geometry().mesh_file().empty() || !spec.geometry().mesh_id().empty()
+                           ? kFixedBytes3dWithGmsh
+                           : kFixedBytes3d;
+  e.memory_bytes = fixed + kBytesPerTetrahedron * elements + 2 * history_bytes +
+                   kFrameBytesPerTetrahedron * elements +
+                   damage_bytes(spec, elements, kNodesPerTetrahedron * elements, 3);
   e.disk_bytes = frames * (kFrameBytesPerTetrahedron * elements + kFrameOverheadBytes) +
                  history_bytes + kMeshBytesPerTetrahedron * elements;
   return e;
