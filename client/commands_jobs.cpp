@@ -308,6 +308,17 @@ int cmd_summary(const GlobalOptions& g, const ParsedArgs& a) {
   for (double t : s.rim_reflections_s()) rims += (rims.empty() ? "" : ", ") + fmt_num(t * 1e9, 5);
   kv.add("rim reflections", rims.empty() ? "none" : rims + " ns");
   kv.add("dt range", fmt_num(s.min_dt_s() * 1e9, 4) + " .. " + fmt_ns(s.max_dt_s()));
+  if (s.damage()) {
+    kv.add("damage starts",
+           s.damage_onset_s() < 0 ? "never (no d >= 1/2)" : fmt_ns(s.damage_onset_s()));
+    kv.add("largest damaged zone", fmt_num(s.max_damaged_volume()) +
+                                       " (2-D: area, m^2; 3-D: volume, m^3), radius " +
+                                       fmt_num(s.max_damaged_radius_m() * 1e6, 4) + " um");
+    kv.add("damage dissipation", fmt_num(s.damage_dissipation_j_per_m()) + " J/m");
+    kv.add("crack energy at end", fmt_num(s.crack_energy_j_per_m()) + " J/m");
+    kv.add("damage updates",
+           std::to_string(s.damage_solves()) + " solves, " + fmt_num(s.damage_time_s(), 3) + " s");
+  }
   kv.print(stdout);
   return kExitOk;
 }

@@ -141,7 +141,10 @@ const std::vector<Command>& commands() {
        "           max_abar_filtered[_first_cycle], abar_filtered_end, max_aspect_ratio, abar_at "
        "--tbar T,\n"
        "           dominant_mode_end, energy_injected_J_per_m, energy_after_pulse_J_per_m,\n"
-       "           shock_at_center_s, wall_time_s; the older energy_injected, ... still work)",
+       "           shock_at_center_s, wall_time_s; with damage: damage_onset_s, "
+       "max_damaged_radius_m,\n"
+       "           max_damaged_volume, damage_dissipation_J_per_m; the older energy_injected, ...\n"
+       "           still work)",
        {{"wait", false},
         {"label", true},
         {"priority", true},

@@ -315,6 +315,11 @@ const std::vector<GridQuantity>& grid_quantities() {
       {"energy_after_pulse_J_per_m", "J/m", false},
       {"shock_at_center_s", "s", false},
       {"wall_time_s", "s", false},
+      // Phase-field damage (NaN for a run without it, and the onset of one never damaged).
+      {"damage_onset_s", "s", false},
+      {"max_damaged_radius_m", "m", false},
+      {"max_damaged_volume", "m^2 (2-D) or m^3 (3-D)", false},
+      {"damage_dissipation_J_per_m", "J/m", false},
   };
   return quantities;
 }
@@ -342,6 +347,10 @@ double grid_quantity(const GridQuantity& quantity, const StoredSummary& stored, 
   if (name == "energy_after_pulse_J_per_m") return s.energy_after_pulse_J_per_m;
   if (name == "shock_at_center_s") return s.shock_at_center_s < 0 ? NAN : s.shock_at_center_s;
   if (name == "wall_time_s") return s.wall_time_s;
+  if (name == "damage_onset_s") return s.damage && s.damage_onset_s >= 0 ? s.damage_onset_s : NAN;
+  if (name == "max_damaged_radius_m") return s.damage ? s.max_damaged_radius_m : NAN;
+  if (name == "max_damaged_volume") return s.damage ? s.max_damaged_volume : NAN;
+  if (name == "damage_dissipation_J_per_m") return s.damage ? s.damage_dissipation_J_per_m : NAN;
   // abar_at
   const auto& t = stored.abar_times;
   const auto& a = stored.abar_values;

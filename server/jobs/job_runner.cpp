@@ -135,6 +135,18 @@ RunSummary parse_summary_json(const std::string& json) {
   optional("abar_filtered_end", r.abar_filtered_end);
   optional("max_aspect_ratio", r.max_aspect_ratio);
   optional("aspect_ratio_above_10_s", r.aspect_ratio_above_10_s);
+  // Phase-field damage: printed only for a run with it.
+  if (f.find("damage_onset_s") != f.end()) {
+    r.damage = true;
+    r.damage_onset_s = json_number(s, "damage_onset_s");
+    r.max_damaged_volume = json_number(s, "max_damaged_volume");
+    r.max_damaged_radius_m = json_number(s, "max_damaged_radius_m");
+    r.damage_dissipation_J_per_m = json_number(s, "damage_dissipation_J_per_m");
+    r.crack_energy_J_per_m = json_number(s, "crack_energy_J_per_m");
+    optional("damage_time_s", r.damage_time_s);
+    if (f.find("damage_solves") != f.end())
+      r.damage_solves = json_count<int64_t>(s, "damage_solves");
+  }
   return r;
 }
 

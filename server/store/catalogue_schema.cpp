@@ -197,6 +197,18 @@ ALTER TABLE jobs ADD COLUMN owner TEXT NOT NULL DEFAULT 'default';
 ALTER TABLE grids ADD COLUMN owner TEXT NOT NULL DEFAULT 'default';
 CREATE INDEX jobs_owner_state ON jobs(owner, state);
 )sql",
+    // 8 -> 9: phase-field damage's summary figures (RunSummary; 0 / -1 without damage, as the
+    // rows of runs from before it existed).
+    R"sql(
+ALTER TABLE job_summaries ADD COLUMN damage INTEGER NOT NULL DEFAULT 0;
+ALTER TABLE job_summaries ADD COLUMN damage_onset REAL NOT NULL DEFAULT -1;
+ALTER TABLE job_summaries ADD COLUMN max_damaged_volume REAL NOT NULL DEFAULT 0;
+ALTER TABLE job_summaries ADD COLUMN max_damaged_radius REAL NOT NULL DEFAULT 0;
+ALTER TABLE job_summaries ADD COLUMN damage_dissipation REAL NOT NULL DEFAULT 0;
+ALTER TABLE job_summaries ADD COLUMN crack_energy REAL NOT NULL DEFAULT 0;
+ALTER TABLE job_summaries ADD COLUMN damage_time REAL NOT NULL DEFAULT 0;
+ALTER TABLE job_summaries ADD COLUMN damage_solves INTEGER NOT NULL DEFAULT 0;
+)sql",
 };
 
 }  // namespace

@@ -77,7 +77,7 @@ using SS = StoredSummary;
 
 // The run's figures: job_summaries' columns for RunSummary (every one of its fields but none
 // of the decimated series).
-const std::array<Column<RS>, 35> kFigures = {{
+const std::array<Column<RS>, 43> kFigures = {{
     count<RS, &RS::elements>("elements"),
     count<RS, &RS::nodes>("nodes"),
     count<RS, &RS::steps>("steps"),
@@ -113,6 +113,14 @@ const std::array<Column<RS>, 35> kFigures = {{
     count<RS, &RS::solver_revision>("solver_revision"),
     figure<RS, &RS::diagnostics_time_s>("diagnostics_time"),
     figure<RS, &RS::output_time_s>("output_time"),
+    count<RS, &RS::damage>("damage"),
+    figure<RS, &RS::damage_onset_s>("damage_onset"),
+    figure<RS, &RS::max_damaged_volume>("max_damaged_volume"),
+    figure<RS, &RS::max_damaged_radius_m>("max_damaged_radius"),
+    figure<RS, &RS::damage_dissipation_J_per_m>("damage_dissipation"),
+    figure<RS, &RS::crack_energy_J_per_m>("crack_energy"),
+    figure<RS, &RS::damage_time_s>("damage_time"),
+    count<RS, &RS::damage_solves>("damage_solves"),
 }};
 
 // The decimated series a StoredSummary adds: heavy, so read only where they are needed.

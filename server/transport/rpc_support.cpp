@@ -203,6 +203,16 @@ void fill_summary(const std::string& id, const RunSummary& s, v1::JobSummary* re
   resp->set_diagnostics_share(s.diagnostics_share());
   resp->set_output_time_s(s.output_time_s);
   resp->set_output_share(s.output_share());
+  if (s.damage) {
+    resp->set_damage(true);
+    resp->set_damage_onset_s(s.damage_onset_s);
+    resp->set_max_damaged_volume(s.max_damaged_volume);
+    resp->set_max_damaged_radius_m(s.max_damaged_radius_m);
+    resp->set_damage_dissipation_j_per_m(s.damage_dissipation_J_per_m);
+    resp->set_crack_energy_j_per_m(s.crack_energy_J_per_m);
+    resp->set_damage_time_s(s.damage_time_s);
+    resp->set_damage_solves(s.damage_solves);
+  }
 }
 
 Status check_request_id_and_labels(const std::string& request_id,

@@ -222,6 +222,15 @@ TEST(GridReduction, QuantitiesFromTheStoredSummary) {
   EXPECT_DOUBLE_EQ(q("abar_at", 4.0), 0.05);
   EXPECT_TRUE(std::isnan(q("abar_at", 5.0))) << "after the end of the run";
   EXPECT_EQ(find_grid_quantity("nope"), nullptr);
+  // Damage figures: NaN for a run without damage, and the onset of one never damaged.
+  EXPECT_TRUE(std::isnan(q("damage_onset_s")));
+  EXPECT_TRUE(std::isnan(q("max_damaged_radius_m")));
+  s.summary.damage = true;
+  s.summary.max_damaged_radius_m = 3e-6;
+  EXPECT_TRUE(std::isnan(q("damage_onset_s"))) << "damaged nowhere (onset -1)";
+  s.summary.damage_onset_s = 1.2e-8;
+  EXPECT_DOUBLE_EQ(q("damage_onset_s"), 1.2e-8);
+  EXPECT_DOUBLE_EQ(q("max_damaged_radius_m"), 3e-6);
   EXPECT_STREQ(grid_quantities().front().name, "max_abar_first_cycle");
 }
 

@@ -261,6 +261,35 @@ TEST_F(ServiceTest, SubmitWatchQueryDelete) {
   EXPECT_EQ(stub_->GetJob(ctx().get(), greq, &gone).error_code(), StatusCode::NOT_FOUND);
 }
 
+// A run with phase-field damage: its figures go from the solver's summary through the catalogue
+// to GetJobSummary (the release tension damages the rim from ~10 ns: docs/verification.md).
+TEST_F(ServiceTest, DamageFiguresReachTheSummary) {
+  start();
+  v1::RunSpec spec = tiny_spec();
+  spec.mutable_geometry()->set_target_elements(400);
+  spec.mutable_run()->set_end_time(2e-8);
+  spec.mutable_damage()->set_model(v1::TALAMINI);
+  const v1::Job done = watch(submit(spec).id());
+  ASSERT_EQ(done.state(), v1::SUCCEEDED) << done.error();
+  v1::GetJobSummaryRequest sreq;
+  sreq.set_id(done.id());
+  v1::JobSummary summary;
+  ASSERT_TRUE(stub_->GetJobSummary(ctx().get(), sreq, &summary).ok());
+  EXPECT_TRUE(summary.damage());
+  EXPECT_GT(summary.damage_onset_s(), 0);
+  EXPECT_LT(summary.damage_onset_s(), 2e-8);
+  EXPECT_GT(summary.max_damaged_volume(), 0);
+  EXPECT_GT(summary.max_damaged_radius_m(), 0);
+  EXPECT_GT(summary.damage_dissipation_j_per_m(), 0);
+  EXPECT_GT(summary.damage_solves(), 0);
+  // A run without damage says so.
+  const v1::Job plain = watch(submit(tiny_spec()).id());
+  sreq.set_id(plain.id());
+  ASSERT_TRUE(stub_->GetJobSummary(ctx().get(), sreq, &summary).ok());
+  EXPECT_FALSE(summary.damage());
+  EXPECT_EQ(summary.damage_solves(), 0);
+}
+
 TEST_F(ServiceTest, CanonicalErrors) {
   start();
   v1::RunSpec bad = tiny_spec();

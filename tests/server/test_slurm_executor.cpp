@@ -76,4 +76,17 @@ TEST(SlurmStates, SummaryJsonRoundTrip) {
   EXPECT_DOUBLE_EQ(r.output_share(), 0.0625);
   // A summary written before revisions were recorded: 0, which no running solver has.
   EXPECT_EQ(parse_summary_json(R"({"elements": 412, "steps": 987})").solver_revision, 0);
+  EXPECT_FALSE(r.damage) << "no damage figures without damage";
+  // The damage figures, printed only for a run with damage, come back too.
+  s.damage = true;
+  s.damage_onset_s = 1.1e-8, s.max_damaged_volume = 2.5e-11, s.max_damaged_radius_m = 2.8e-6;
+  s.damage_dissipation_J_per_m = 0.0125, s.crack_energy_J_per_m = 0.5, s.damage_solves = 7;
+  const RunSummary d = parse_summary_json(summary_to_json(s));
+  EXPECT_TRUE(d.damage);
+  EXPECT_DOUBLE_EQ(d.damage_onset_s, 1.1e-8);
+  EXPECT_DOUBLE_EQ(d.max_damaged_volume, 2.5e-11);
+  EXPECT_DOUBLE_EQ(d.max_damaged_radius_m, 2.8e-6);
+  EXPECT_DOUBLE_EQ(d.damage_dissipation_J_per_m, 0.0125);
+  EXPECT_DOUBLE_EQ(d.crack_energy_J_per_m, 0.5);
+  EXPECT_EQ(d.damage_solves, 7);
 }
