@@ -9,7 +9,11 @@ each time, then check what an operator relies on (docs/reliability.md):
 - kills during mesh uploads (an upload runs in a thread in about half the rounds, the kill
   landing before, during or after it): every mesh whose UploadMesh answer arrived is listed
   after the last restart, its file holds exactly the uploaded bytes (id = SHA-256), and no
-  staged or checker file is left in DATA/meshes/uploads.
+  staged or checker file is left in DATA/meshes/uploads;
+- kills during checkpoints (the daemon checkpoints every 20 ms of a run, so kills land before,
+  while and after a state file is written): every SUCCEEDED job that continued from a checkpoint
+  has a result bitwise equal, dataset by dataset, to softshock-solve's uninterrupted run of its
+  spec, and no checkpoint folder outlives its job.
 
 SOFTSHOCK_CHAOS_KILLS (default 20) sets the number of kills, SOFTSHOCK_CHAOS_SEED the random
 seed; the figures (kills, acknowledged, lost, corrupt, restart-to-healthy) are printed.
@@ -20,8 +24,11 @@ import hashlib
 import json
 import os
 import random
+import re
 import sqlite3
 import statistics
+import subprocess
+import sys
 import threading
 import time
 import unittest
@@ -40,7 +47,9 @@ class ChaosTest(DaemonTestCase):
     workers = 2
     # Enough attempts that most jobs finish despite the kills; the rest must end FAILED
     # MAX_ATTEMPTS, which is terminal too.
-    daemon_args = ("--max-attempts", "6")
+    # Checkpoints every 20 ms of a run: the runs here take 0.1-0.5 s, so kills land before,
+    # during and after state files are written, and restarts continue from them.
+    daemon_args = ("--max-attempts", "6", "--checkpoint-interval", "0.02")
 
     def test_sigkill_at_random_moments(self):
         rng = random.Random(SEED)
@@ -81,6 +90,19 @@ class ChaosTest(DaemonTestCase):
             started = time.monotonic()
             self.daemon.start()
             restarts.append(time.monotonic() - started)
+
+        # One kill sure to land after a checkpoint: a longer job, killed as soon as its state file
+        # exists (the folder goes when the job ends), so at least one job continues from one.
+        c = self.client(timeout=5)
+        sure = c.submit(small_spec(4000, 4e-7)).id
+        acknowledged.add(sure)
+        state_file = os.path.join(self.data_dir, "jobs", sure, "checkpoint", "state.ckpt")
+        deadline = time.monotonic() + 120
+        while not os.path.exists(state_file) and time.monotonic() < deadline:
+            time.sleep(0.002)
+        self.assertTrue(os.path.exists(state_file), "no checkpoint of a running job in 120 s")
+        self.daemon.kill9()
+        self.daemon.start()
 
         c = self.client(timeout=10)
         deadline = time.monotonic() + 300
@@ -123,6 +145,22 @@ class ChaosTest(DaemonTestCase):
                 self.assertEqual(hashlib.sha256(f.read()).hexdigest(), sha, mesh_id)
             self.assertGreater(listed[mesh_id].elements, 0, mesh_id)
 
+        # Continued from checkpoints: the same answer as a run that never stopped.
+        with open(self.daemon.log_path, encoding="utf-8", errors="replace") as f:
+            continued = set(re.findall(r"job ([0-9a-f]+) continues from its checkpoint", f.read()))
+        self.assertIn(sure, continued, "the job killed after its checkpoint did not continue")
+        checked, differing = 0, []
+        for job_id in sorted(continued & acknowledged):
+            job = c.get(job_id)
+            if state_name(job) != "SUCCEEDED":
+                continue
+            result = os.path.join(self.data_dir, job.result_path)
+            if not self._equals_an_uninterrupted_run(result, job_id):
+                differing.append(job_id)
+            checked += 1
+        self.assertEqual(differing, [], "continued jobs whose result differs from a run that "
+                         "never stopped")
+
         self.assertEqual(self.daemon.stop(), 0)
         leftovers = [os.path.basename(p) for p in glob.glob(os.path.join(uploads_dir, ".*"))]
         self.assertEqual(leftovers, [], "staged or checker files left after the kills")
@@ -137,12 +175,32 @@ class ChaosTest(DaemonTestCase):
             db.close()
         self.assertEqual(over, [], "jobs with more runs than their attempt counter says")
 
+        leftover_checkpoints = glob.glob(os.path.join(self.data_dir, "jobs", "*", "checkpoint"))
+        self.assertEqual(leftover_checkpoints, [], "checkpoint folders left after their jobs")
+
         print(f"\nchaos: kills={KILLS} seed={SEED} acknowledged={len(acknowledged)} lost=0 "
               f"stuck=0 corrupt=0 states={states} restart-to-healthy median="
               f"{statistics.median(restarts):.3f}s max={max(restarts):.3f}s "
               f"uploads started={uploads_started} answered={len(answers)} (killed before the "
               f"answer {uploads_started - len(answers)}) distinct meshes stored="
-              f"{len(meshes_acknowledged)} lost=0 leftovers=0")
+              f"{len(meshes_acknowledged)} lost=0 leftovers=0 continued from a checkpoint="
+              f"{len(continued)} (succeeded and compared bitwise: {checked}, differing 0)")
+
+    def _equals_an_uninterrupted_run(self, result, job_id):
+        """softshock-solve runs the job's stored spec without a stop (one thread, as the
+        daemon's default --solver-threads); every dataset must equal the job's bit for bit."""
+        with h5py.File(result, "r") as h5:
+            spec = h5.attrs["spec"]
+        folder = os.path.join(self.tmp, "uninterrupted", job_id)
+        os.makedirs(folder)
+        spec_path = os.path.join(folder, "spec.json")
+        with open(spec_path, "w") as f:
+            f.write(spec if isinstance(spec, str) else spec.decode())
+        subprocess.run([os.environ["SOFTSHOCK_SOLVE"], "--spec", spec_path, "--out", folder,
+                        "--threads", "1", "--quiet"], check=True, stdout=subprocess.DEVNULL)
+        compare = os.path.join(os.environ["SOFTSHOCK_SOURCE_DIR"], "scripts", "compare_results.py")
+        return subprocess.run([sys.executable, compare, result,
+                               os.path.join(folder, "result.h5"), "--quiet"]).returncode == 0
 
     def _upload_files(self, rng):
         """A few distinct meshes of 0.1-1 MB, so that a kill often lands inside an upload."""
