@@ -475,7 +475,7 @@ int cmd_field(const GlobalOptions& g, const ParsedArgs& a) {
   if (!name || name->empty())
     usage_error(
         "--name is required (J, mean_stress, hoop_stress, "
-        "radial_stress, von_mises, displacement, velocity)");
+        "radial_stress, von_mises, displacement, velocity, damage)");
   request.set_name(*name);
   if (a.has("time") && a.has("frame")) usage_error("give --time or --frame, not both");
   if (auto t = a.get("time")) request.set_time(parse_time_seconds("time", *t));

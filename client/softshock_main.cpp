@@ -113,7 +113,7 @@ const std::vector<Command>& commands() {
        64,
        cmd_series},
       {"field",
-       "ID --name J|mean_stress|hoop_stress|radial_stress|von_mises|displacement|velocity\n"
+       "ID --name J|mean_stress|hoop_stress|radial_stress|von_mises|displacement|velocity|damage\n"
        "                 [--time T | --frame K] [--raster NXxNY | --every K | --surface N]\n"
        "                 [--slice z=V | --slice PX,PY,PZ:NX,NY,NZ] [--csv FILE] [--png FILE]",
        "a field frame: statistics, CSV ('-' = stdout) or a PNG plot (raster, default 256x256); "

@@ -48,6 +48,7 @@ const std::map<std::string, FieldKind>& field_kinds() {
       {"aspect_ratio", {false, 1, "1"}},
       {"displacement", {true, 2, "m"}},  // components: the mesh's dimension
       {"velocity", {true, 2, "m/s"}},
+      {"damage", {true, 1, "1"}},  // phase-field d per node: runs with spec.damage only
   };
   return kinds;
 }
@@ -252,6 +253,14 @@ Status SimulationService::field(grpc::ServerContext* ctx, const v1::GetFieldRequ
     if (asked > 0) max_triangles = static_cast<std::size_t>(asked);
   }
   if (Status s = result_file(id, &path); !s.ok()) return s;
+  if (req.name() == "damage") {
+    const auto stored = catalogue_.summary(id);
+    if (!stored || !stored->summary.damage) {
+      return {
+          StatusCode::FAILED_PRECONDITION,
+          "job " + id + " has no damage field: its spec has no phase-field damage (spec.damage)"};
+    }
+  }
   ResultReader reader(path);
   const auto& frame_times = reader.info().frame_times;
   if (frame_times.empty()) {
@@ -274,7 +283,7 @@ Status SimulationService::field(grpc::ServerContext* ctx, const v1::GetFieldRequ
   }
 
   const int dimension = reader.info().dimension;
-  if (kind.node) kind.components = dimension;  // vectors have the mesh's components
+  if (kind.node && kind.components > 1) kind.components = dimension;  // vectors: the mesh's
   if (dimension != 3 && req.sampling_case() == v1::GetFieldRequest::kSurface) {
     return invalid("surface", "is for 3-D results; this job's is 2-D (use raster or every)");
   }

@@ -282,12 +282,46 @@ TEST_F(ServiceTest, DamageFiguresReachTheSummary) {
   EXPECT_GT(summary.max_damaged_radius_m(), 0);
   EXPECT_GT(summary.damage_dissipation_j_per_m(), 0);
   EXPECT_GT(summary.damage_solves(), 0);
-  // A run without damage says so.
+  // The field d of the last frame, per node, on a raster: within [0, 1], damaged somewhere.
+  v1::GetFieldRequest freq;
+  freq.set_id(done.id());
+  freq.set_name("damage");
+  freq.mutable_raster()->set_nx(32);
+  freq.mutable_raster()->set_ny(32);
+  std::vector<double> d;
+  {
+    auto c = ctx();
+    auto reader = stub_->GetField(c.get(), freq);
+    v1::FieldChunk chunk;
+    ASSERT_TRUE(reader->Read(&chunk));
+    EXPECT_EQ(chunk.header().components(), 1);
+    EXPECT_EQ(chunk.header().units(), "1");
+    while (reader->Read(&chunk)) d.insert(d.end(), chunk.values().begin(), chunk.values().end());
+    ASSERT_TRUE(reader->Finish().ok());
+  }
+  ASSERT_EQ(d.size(), 32u * 32u);
+  double largest = 0;
+  for (double v : d) {
+    if (std::isnan(v)) continue;  // outside the disk
+    EXPECT_GE(v, 0.0);
+    EXPECT_LE(v, 1.0);
+    largest = std::max(largest, v);
+  }
+  EXPECT_GT(largest, 0.0);
+  // A run without damage says so, and has no damage field.
   const v1::Job plain = watch(submit(tiny_spec()).id());
   sreq.set_id(plain.id());
   ASSERT_TRUE(stub_->GetJobSummary(ctx().get(), sreq, &summary).ok());
   EXPECT_FALSE(summary.damage());
   EXPECT_EQ(summary.damage_solves(), 0);
+  freq.set_id(plain.id());
+  {
+    auto c = ctx();
+    auto reader = stub_->GetField(c.get(), freq);
+    v1::FieldChunk chunk;
+    EXPECT_FALSE(reader->Read(&chunk));
+    EXPECT_EQ(reader->Finish().error_code(), StatusCode::FAILED_PRECONDITION);
+  }
 }
 
 TEST_F(ServiceTest, CanonicalErrors) {

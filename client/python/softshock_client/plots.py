@@ -30,6 +30,7 @@ FIELD_LABELS = {
     "von_mises": "von Mises stress σ_vM",
     "displacement": "|displacement|",
     "velocity": "|velocity|",
+    "damage": "phase-field damage d",
 }
 
 
