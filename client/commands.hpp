@@ -52,6 +52,7 @@ int cmd_fetch(const GlobalOptions& g, const ParsedArgs& a);
 
 // Accounting and comparison (commands_accounting.cpp, commands_compare.cpp).
 int cmd_label(const GlobalOptions& g, const ParsedArgs& a);
+int cmd_extend(const GlobalOptions& g, const ParsedArgs& a);
 int cmd_diff(const GlobalOptions& g, const ParsedArgs& a);
 
 // Uploaded meshes (commands_meshes.cpp).

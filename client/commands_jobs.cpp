@@ -180,6 +180,32 @@ int cmd_submit(const GlobalOptions& g, const ParsedArgs& a) {
   return exit_for_final_state(watch_until_done(conn, job.id(), g.json));
 }
 
+int cmd_extend(const GlobalOptions& g, const ParsedArgs& a) {
+  v1::ExtendJobRequest request;
+  request.set_id(single_id(a));
+  const auto end = a.get("end-time");
+  if (!end) usage_error("--end-time is required (s, after the job's end time, e.g. 8e-7)");
+  request.set_end_time(parse_time_seconds("end-time", *end));
+  for (const auto& l : a.all("label")) {
+    auto [k, v] = parse_label("label", l);
+    (*request.mutable_labels())[k] = v;
+  }
+  if (auto p = a.get("priority")) request.set_priority(parse_int32("priority", *p, INT32_MIN + 1));
+  request.set_request_id(a.get("request-id").value_or(make_uuid()));
+  Connection conn(g);
+  v1::Job job;
+  conn.unary(
+      [&](grpc::ClientContext& ctx) { return conn.service().ExtendJob(&ctx, request, &job); });
+  if (g.json) {
+    std::printf("%s\n", to_json(job, !a.has("wait")).c_str());
+  } else {
+    std::printf("%s\n", job.id().c_str());
+  }
+  std::fflush(stdout);
+  if (!a.has("wait")) return kExitOk;
+  return exit_for_final_state(watch_until_done(conn, job.id(), g.json));
+}
+
 int cmd_status(const GlobalOptions& g, const ParsedArgs& a) {
   Connection conn(g);
   v1::GetJobRequest request;

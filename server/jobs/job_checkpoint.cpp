@@ -95,8 +95,12 @@ void JobCheckpointer::attach(RunControl& control, const CancelToken& cancel) {
   }
   control.checkpoint_at_stop = true;
   control.on_checkpoint = [this, &cancel](const RunState& state) {
-    // Where the run stopped: only worth keeping when the job will run again.
-    if (state.stopped && cancel.reason() != StopReason::kShutdown) return;
+    // Where the run stopped: a checkpoint only when the job will run again; else kept in memory,
+    // for a SUCCEEDED job's final state.
+    if (state.stopped && cancel.reason() != StopReason::kShutdown) {
+      final_state_ = state;
+      return;
+    }
     take(state);
   };
 }

@@ -58,6 +58,9 @@ class JobCheckpointer {
   // down (the job is requeued and continues from there).
   void attach(RunControl& control, const CancelToken& cancel);
   int taken() const { return taken_; }
+  // Where the run stopped when it was not a shutdown (the end time, a cancellation or a failure):
+  // a SUCCEEDED job keeps it so that ExtendJob can continue it (job_extension.hpp).
+  const std::optional<RunState>& final_state() const { return final_state_; }
 
  private:
   using Clock = std::chrono::steady_clock;
@@ -67,6 +70,7 @@ class JobCheckpointer {
   AsyncResultWriter& writer_;
   Clock::time_point next_;
   int taken_ = 0;
+  std::optional<RunState> final_state_;
 };
 
 }  // namespace softshock::server

@@ -15,6 +15,7 @@
 #include <utility>
 
 #include "server/jobs/job_checkpoint.hpp"
+#include "server/jobs/job_extension.hpp"
 #include "server/jobs/mesh_process.hpp"
 #include "server/log.hpp"
 #include "server/store/resource_exhausted.hpp"
@@ -494,8 +495,31 @@ void JobRunner::run_job(const std::string& id, CancelToken& cancel) {
         resume.reset();
       }
     }
+    if (!resume) remove_job_checkpoint(dir);   // an older checkpoint's files go
+    if (!resume && !job->parent_id.empty()) {  // ExtendJob: from where the parent stopped
+      why_not.clear();
+      resume = load_parent_state(job_dir(job->parent_id), dir, spec_json, problem.mesh,
+                                 options.threads, &why_not);
+      try {
+        if (resume) {
+          writer = std::make_unique<AsyncResultWriter>(
+              dir, problem.mesh, spec_json, SOFTSHOCK_VERSION, sealed_frames(dir, resume->header),
+              resume->header.frame_times);
+          log_info("job ", id, " continues job ", job->parent_id,
+                   " from its final state at t = ", seconds(resume->state.time_s), ", step ",
+                   resume->state.steps);
+        }
+      } catch (const std::exception& e) {
+        why_not = e.what();
+        resume.reset();
+      }
+      if (!resume) {
+        log_warning("job ", id, ": runs from t = 0, job ", job->parent_id,
+                    "'s final state not used: ", why_not);
+        remove_job_checkpoint(dir);
+      }
+    }
     if (!resume) {
-      remove_job_checkpoint(dir);  // runs from t = 0: an older checkpoint's files go
       writer = std::make_unique<AsyncResultWriter>(dir, problem.mesh, spec_json, SOFTSHOCK_VERSION);
     }
   } catch (const std::exception& e) {
@@ -634,6 +658,14 @@ void JobRunner::run_job(const std::string& id, CancelToken& cancel) {
   const std::string path = fs::exists(writer->h5_path()) ? writer->h5_path() : std::string();
   writer.reset();              // no checkpoint is being written any more
   remove_job_checkpoint(dir);  // its frames are in the result now
+  if (state == JobState::kSucceeded && !path.empty() && checkpointer.final_state()) {
+    try {  // for ExtendJob; without it an extension runs from t = 0
+      save_final_state(dir, spec_json, mesh_fingerprint(problem.mesh), *checkpointer.final_state(),
+                       path);
+    } catch (const std::exception& e) {
+      log_warning("job ", id, ": final state not kept: ", e.what());
+    }
+  }
   finish(state, why, error, path, stored ? &*stored : nullptr);
   if (!catalogue_.get(id)) {
     // Deleted while it ran: do not leave an orphan folder behind.

@@ -88,7 +88,8 @@ struct JobRecord {
   int grid_index = 0;
   std::string reused_from;  // the SUCCEEDED job whose result this one reuses; empty = ran itself
   bool reuse_result = false;
-  std::string owner;  // the user who submitted it (server/policy/users.hpp)
+  std::string owner;      // the user who submitted it (server/policy/users.hpp)
+  std::string parent_id;  // ExtendJob: the job it continues; empty = none
 };
 
 // The nondimensional groups of a job as catalogued (indexed columns; NaN = not known yet, e.g.
@@ -108,7 +109,8 @@ struct NewJob {
   // must then name the linked result file.
   std::string reused_from;
   std::string result_path;
-  std::string owner;  // the submitting user
+  std::string owner;      // the submitting user
+  std::string parent_id;  // ExtendJob: the job it continues
 };
 
 // The catalogued figures of a finished run: the solver's summary plus the mode amplitudes

@@ -209,6 +209,10 @@ ALTER TABLE job_summaries ADD COLUMN crack_energy REAL NOT NULL DEFAULT 0;
 ALTER TABLE job_summaries ADD COLUMN damage_time REAL NOT NULL DEFAULT 0;
 ALTER TABLE job_summaries ADD COLUMN damage_solves INTEGER NOT NULL DEFAULT 0;
 )sql",
+    // 9 -> 10: ExtendJob's link from a job to the SUCCEEDED job it continues.
+    R"sql(
+ALTER TABLE jobs ADD COLUMN parent_id TEXT NOT NULL DEFAULT '';
+)sql",
 };
 
 }  // namespace

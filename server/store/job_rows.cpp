@@ -32,7 +32,8 @@ std::string job_columns(const std::string& t) {
                         "grid_index",
                         "reused_from",
                         "reuse_result",
-                        "owner"}) {
+                        "owner",
+                        "parent_id"}) {
     const std::string name = t + c;
     const bool nullable = std::strcmp(c, "request_id") == 0 || std::strcmp(c, "grid_id") == 0;
     out += (out.empty() ? "" : ", ") + (nullable ? "COALESCE(" + name + ", '')" : name);
@@ -65,6 +66,7 @@ JobRecord read_job(const Connection::Stmt& s) {
   j.reused_from = s.text(20);
   j.reuse_result = s.i64(21) != 0;
   j.owner = s.text(22);
+  j.parent_id = s.text(23);
   return j;
 }
 
@@ -116,8 +118,9 @@ int64_t insert_job_row(Connection& c, const NewJob& job) {
     auto s = c.prepare(
         "INSERT INTO jobs(id, state, spec_json, spec_hash, priority, request_id, create_time_us, "
         "attempt, grid_id, grid_index, reuse_result, reused_from, result_path, start_time_us, "
-        "finish_time_us, progress_fraction, pbar, tbar_pulse, mubar, gamma, c1, c2, owner) "
-        "VALUES (?, ?, ?, ?, ?, ?, ?, 1, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)");
+        "finish_time_us, progress_fraction, pbar, tbar_pulse, mubar, gamma, c1, c2, owner, "
+        "parent_id) "
+        "VALUES (?, ?, ?, ?, ?, ?, ?, 1, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)");
     s.bind(1, job.id);
     s.bind(2, static_cast<int>(reused ? JobState::kSucceeded : JobState::kQueued));
     s.bind(3, job.spec_json).bind(4, job.spec_hash).bind(5, job.priority);
@@ -140,6 +143,7 @@ int64_t insert_job_row(Connection& c, const NewJob& job) {
     int i = 16;
     for (double v : {g.pbar, g.tbar_pulse, g.mubar, g.gamma, g.c1, g.c2}) bind_nullable(s, i++, v);
     s.bind(i, job.owner.empty() ? std::string(kDefaultUser) : job.owner);
+    s.bind(i + 1, job.parent_id);
     s.run();
   }
   const int64_t seq = c.last_insert_rowid();

@@ -15,7 +15,7 @@ using Connection = SqliteConnection;
 // The job columns read_job() expects, qualified with `t` (a table alias and dot, or empty) so
 // queries that join job_summaries (which has its own `error`) stay unambiguous.
 std::string job_columns(const std::string& t = "");
-inline constexpr int kJobColumnCount = 23;
+inline constexpr int kJobColumnCount = 24;
 JobRecord read_job(const Connection::Stmt& s);
 
 // A nullable REAL column: NaN for NULL, and NULL for NaN.

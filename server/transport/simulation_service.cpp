@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cstdio>
 #include <filesystem>
 #include <optional>
 #include <thread>
@@ -103,6 +104,7 @@ void SimulationService::fill_job(const JobRecord& r, v1::Job* job) const {
   job->set_grid_index(r.grid_index);
   job->set_reused_from(r.reused_from);
   job->set_owner(r.owner);
+  job->set_parent_id(r.parent_id);
 }
 
 std::string SimulationService::without_data_dir(const std::string& text,
@@ -142,8 +144,8 @@ Status SimulationService::SubmitJob(grpc::ServerContext* ctx, const v1::SubmitJo
 }
 
 Status SimulationService::submit(grpc::ServerContext* ctx, const Caller& caller,
-                                 const v1::SubmitJobRequest& req, v1::Job* resp,
-                                 AuditRecord& audit) {
+                                 const v1::SubmitJobRequest& req, v1::Job* resp, AuditRecord& audit,
+                                 const std::string& parent_id) {
   if (Status s = check_request_id_and_labels(req.request_id(), req.labels()); !s.ok()) return s;
   // A repeated request_id returns the first job, even when the queue is full (AIP-155).
   if (!req.request_id().empty()) {
@@ -174,6 +176,7 @@ Status SimulationService::submit(grpc::ServerContext* ctx, const Caller& caller,
   job.priority = req.priority();
   job.reuse_result = req.reuse_result();
   job.owner = caller.user;
+  job.parent_id = parent_id;
 
   if (!scheduler_.reserve()) {
     return {StatusCode::RESOURCE_EXHAUSTED, "the queue is full (" +
@@ -215,6 +218,44 @@ Status SimulationService::submit(grpc::ServerContext* ctx, const Caller& caller,
   }
   fill_job(inserted.job, resp);
   return Status::OK;
+}
+
+// --- ExtendJob -----------------------------------------------------------------------------
+
+// A submission of the parent's spec to the later end time, linked to the parent: the runner
+// continues from the parent's final state (jobs/job_checkpoint.hpp) when it can.
+Status SimulationService::ExtendJob(grpc::ServerContext* ctx, const v1::ExtendJobRequest* req,
+                                    v1::Job* resp) {
+  return audited(auth_, ctx, "ExtendJob", [&](const Caller& caller, AuditRecord& audit) -> Status {
+    std::string id;
+    if (Status st = requested_id(*req, "jobs/", &id); !st.ok()) return st;
+    const auto parent = catalogue_.get(id);
+    if (!parent) return not_found(id);
+    audit.resource = "jobs/" + id;
+    if (parent->state != JobState::kSucceeded) {
+      return {StatusCode::FAILED_PRECONDITION, "job " + id + " is " +
+                                                   std::string(to_string(parent->state)) +
+                                                   ": only a SUCCEEDED job can be extended"};
+    }
+    v1::SubmitJobRequest extended;
+    try {
+      *extended.mutable_spec() = parse_stored_spec(parent->spec_json);
+    } catch (const SpecError&) {
+      return {StatusCode::INTERNAL, "job " + id + ": its stored spec does not parse"};
+    }
+    const double parent_end = extended.spec().run().end_time();
+    if (!(req->end_time() > parent_end)) {
+      char rule[96];
+      std::snprintf(rule, sizeof rule, "must be after the parent's end time, %.6g s", parent_end);
+      return invalid("end_time", rule);
+    }
+    extended.mutable_spec()->mutable_run()->set_end_time(req->end_time());
+    extended.mutable_labels()->insert(req->labels().begin(), req->labels().end());
+    extended.set_priority(req->priority());
+    extended.set_request_id(req->request_id());
+    auto hold = meshes_.hold_for_submit();  // its mesh cannot be deleted before the insert
+    return submit(ctx, caller, extended, resp, audit, id);
+  });
 }
 
 // --- GetJob / ListJobs ---------------------------------------------------------------------

@@ -44,6 +44,8 @@ class SimulationService final : public v1::SimulationService::Service {
                          v1::Job* resp) override;
   grpc::Status GetJob(grpc::ServerContext* ctx, const v1::GetJobRequest* req,
                       v1::Job* resp) override;
+  grpc::Status ExtendJob(grpc::ServerContext* ctx, const v1::ExtendJobRequest* req,
+                         v1::Job* resp) override;
   grpc::Status ListJobs(grpc::ServerContext* ctx, const v1::ListJobsRequest* req,
                         v1::ListJobsResponse* resp) override;
   grpc::Status WatchJob(grpc::ServerContext* ctx, const v1::WatchJobRequest* req,
@@ -85,8 +87,10 @@ class SimulationService final : public v1::SimulationService::Service {
 
  private:
   friend class StreamSlot;
+  // parent_id: ExtendJob's, the job the new one continues.
   grpc::Status submit(grpc::ServerContext* ctx, const Caller& caller,
-                      const v1::SubmitJobRequest& req, v1::Job* resp, AuditRecord& audit);
+                      const v1::SubmitJobRequest& req, v1::Job* resp, AuditRecord& audit,
+                      const std::string& parent_id = {});
   grpc::Status list(const v1::ListJobsRequest& req, v1::ListJobsResponse* resp);
   grpc::Status watch(grpc::ServerContext* ctx, const std::string& id,
                      grpc::ServerWriter<v1::Job>* writer);

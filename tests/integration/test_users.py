@@ -221,7 +221,7 @@ class MeshQuotaTest(SharedDaemon):
 
 class UpgradeTest(DaemonTestCase):
     """A data folder of a softshockd from before users (catalogue schema 7, mesh records without
-    an owner), made here by taking migrations 9 and 8 back out of one, then served with users."""
+    an owner), made here by taking migrations 10, 9 and 8 back out of one, then served with users."""
     start_daemon = False
     workers = 1
 
@@ -239,7 +239,8 @@ class UpgradeTest(DaemonTestCase):
         self.assertEqual(self.daemon.stop(), 0)
 
         db = sqlite3.connect(os.path.join(self.data_dir, "catalogue.sqlite"))
-        # Migration 9 (the damage figures) back out too, then 8.
+        # Migrations 10 (parent_id) and 9 (the damage figures) back out too, then 8.
+        db.executescript("ALTER TABLE jobs DROP COLUMN parent_id;")
         db.executescript("".join(
             f"ALTER TABLE job_summaries DROP COLUMN {c}; " for c in (
                 "damage", "damage_onset", "max_damaged_volume", "max_damaged_radius",
@@ -258,7 +259,7 @@ class UpgradeTest(DaemonTestCase):
         users = self.write_json(f"alice:{TOKENS['alice']}\nops:{TOKENS['ops']}:admin\n", "users")
         self.daemon.extra_args += ["--users-file", users]
         self.start(health_token=TOKENS["ops"])
-        self.assertIn("catalogue-schema=9", self.daemon.log_tail(200))
+        self.assertIn("catalogue-schema=10", self.daemon.log_tail(200))
         ops, alice = self.client(token=TOKENS["ops"]), self.client(token=TOKENS["alice"])
         listed = ops.list()
         self.assertEqual(len(listed), 4)  # two jobs and two grid points, all kept

@@ -45,12 +45,12 @@ class CatalogueTest : public ::testing::Test {
 TEST_F(CatalogueTest, MigrationsAreIdempotentAndDataSurvivesReopen) {
   {
     Catalogue c(path_);
-    EXPECT_EQ(c.schema_version(), 9);
+    EXPECT_EQ(c.schema_version(), 10);
     c.insert(job("a", 3, 0, {{"study", "s1"}}));
   }
   for (int i = 0; i < 2; ++i) {
     Catalogue c(path_);
-    EXPECT_EQ(c.schema_version(), 9);
+    EXPECT_EQ(c.schema_version(), 10);
     auto a = c.get("a");
     ASSERT_TRUE(a);
     EXPECT_EQ(a->state, JobState::kQueued);

@@ -74,7 +74,7 @@ TEST_F(CatalogueOwnersTest, SchemaSevenUpgradesWithEveryJobOwnedByTheDefaultUser
         "VALUES ('old-grid', 3, 0, '{}')");
   }
   Catalogue c(path_);
-  EXPECT_EQ(c.schema_version(), 9);
+  EXPECT_EQ(c.schema_version(), 10);
   for (const char* id : {"old-queued", "old-done"}) {
     auto j = c.get(id);
     ASSERT_TRUE(j) << id;

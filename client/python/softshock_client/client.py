@@ -310,6 +310,18 @@ class Client:
             return self.wait(job.id)
         return Job(job)
 
+    def extend(self, job_id: str, end_time: float, labels: Optional[Dict[str, str]] = None,
+               wait: bool = False, priority: int = 0, request_id: Optional[str] = None):
+        """Continues a SUCCEEDED job to a later `end_time` (s) as a new job (its `parent_id` is
+        `job_id`), starting from where the parent stopped when its final state was kept
+        (docs/api.md, ExtendJob). Returns the new Job (the final one when wait=True)."""
+        job = self._call(self._stub.ExtendJob, service_pb2.ExtendJobRequest(
+            id=job_id, end_time=end_time, labels=dict(labels or {}), priority=priority,
+            request_id=request_id or str(uuid.uuid4())))
+        if wait:
+            return self.wait(job.id)
+        return Job(job)
+
     def get(self, job_id: str) -> Job:
         """The job (`id` or `jobs/{id}`) with its live progress; `state` is a JobState."""
         return Job(self._call(self._stub.GetJob, service_pb2.GetJobRequest(id=job_id)))
