@@ -29,11 +29,24 @@ set(CPACK_COMPONENT_DAEMON_DESCRIPTION
     "softshock simulation daemon\n softshockd runs shock-wave simulations of soft solids submitted over gRPC, with a\n SQLite catalogue and HDF5/XDMF results; softshock-solve runs one spec without it.")
 set(CPACK_DEBIAN_DAEMON_PACKAGE_SUGGESTS "softshock-client, paraview")
 
+# Each package: its man pages (packaging/man.cmake), a DEP-5 copyright file; the client's bash
+# completion; the daemon's deployment guide, which the unit's Documentation= names.
+include(${CMAKE_CURRENT_LIST_DIR}/man.cmake)
+softshock_man_page(softshock 1 client "command-line client of the softshock daemon")
+install(FILES ${PROJECT_SOURCE_DIR}/packaging/copyright DESTINATION share/doc/softshock-client
+        COMPONENT client)
+install(FILES ${PROJECT_SOURCE_DIR}/packaging/softshock.bash-completion
+        DESTINATION share/bash-completion/completions RENAME softshock COMPONENT client)
 if(SOFTSHOCK_CLIENT_ONLY)
   set(CPACK_COMPONENTS_ALL client)
 else()
   set(CPACK_COMPONENTS_ALL client daemon)
   install(FILES ${PROJECT_SOURCE_DIR}/packaging/softshockd.service
           DESTINATION lib/systemd/system COMPONENT daemon)
+  softshock_man_page(softshockd 8 daemon "softshock simulation daemon (gRPC)")
+  softshock_man_page(softshock-solve 1 daemon "run one softshock spec without the daemon")
+  softshock_man_page(softshock-mesh 1 daemon "mesh a softshock spec (softshockd's meshing process)")
+  install(FILES ${PROJECT_SOURCE_DIR}/packaging/copyright ${PROJECT_SOURCE_DIR}/docs/deploy.md
+          DESTINATION share/doc/softshockd COMPONENT daemon)
 endif()
 include(CPack)

@@ -367,6 +367,22 @@ class DocumentationTest(unittest.TestCase):
         self.assertIn("compose -f deploy/compose.yaml up", section)
         self.assertIn("softshock_token", section)
 
+    def test_readme_venv_recipe_is_the_one_that_works(self):
+        # The recipe tests/integration/test_python_package.py runs, in README.md and
+        # client/README.md: a plain venv fails (`invalid command 'bdist_wheel'`), and without
+        # python3-wheel so does --no-build-isolation.
+        with open(os.path.join(SOURCE_DIR, "README.md"), encoding="utf-8") as f:
+            section = f.read().split("## Just the client", 1)[1].split("\n## ", 1)[0]
+        with open(os.path.join(SOURCE_DIR, "client", "README.md"), encoding="utf-8") as f:
+            client_readme = f.read()
+        for doc in (section, client_readme):
+            self.assertIn("python3-venv", doc)
+            block = doc.split("python3-venv", 1)[1].split("```", 1)[0]
+            for needed in ("python3-wheel", "python3-setuptools", "python3-grpcio",
+                           "python3 -m venv --system-site-packages ~/softshock-venv",
+                           "~/softshock-venv/bin/pip install --no-build-isolation ./client/python"):
+                self.assertIn(needed, block)
+
 
 if __name__ == "__main__":
     unittest.main()

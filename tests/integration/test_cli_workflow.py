@@ -173,7 +173,7 @@ class CliWorkflowTest(DaemonTestCase):
         self.assertEqual(self.cli_json("list", "--state", "RUNNING")["jobs"], [])
         self.assertEqual(len(self.cli_json("list", "--limit", "1")["jobs"]), 1)
 
-        self.cli_ok("delete", a)
+        self.assertEqual(self.cli_ok("delete", a).stdout, f"deleted: {a}\n")  # not silent
         gone = self.cli("status", a)
         self.assertEqual(gone.returncode, 1)
         self.assertIn("NOT_FOUND", gone.stderr)

@@ -85,7 +85,8 @@ class MeshUploadTest(DaemonTestCase):
         self.assertIn("FAILED_PRECONDITION", p.stderr)
         c.cancel(waiting.id)
         c.cancel(blocker.id)
-        self.cli_ok("mesh", "delete", f"meshes/{mesh.id}")
+        deleted = self.cli_ok("mesh", "delete", f"meshes/{mesh.id}").stdout
+        self.assertEqual(deleted, f"deleted: meshes/{mesh.id}\n")  # says what went, not nothing
         self.assertEqual(c.list_meshes(), [])
         p = self.cli("mesh", "delete", mesh.id)
         self.assertEqual(p.returncode, 1)
