@@ -279,6 +279,10 @@ int cmd_summary(const GlobalOptions& g, const ParsedArgs& a) {
   kv.add("steps", std::to_string(s.steps()));
   kv.add("wall time", fmt_num(s.wall_time_s(), 4) + " s");
   kv.add("simulated time", fmt_ns(s.end_time_s()));
+  if (s.dimension() == 3) {
+    kv.add("dimension", "3 (tetrahedra; per-metre figures over the " +
+                            fmt_num(s.thickness_m() * 1e6, 4) + " um thickness)");
+  }
   kv.add("solver revision", s.solver_revision() > 0 ? std::to_string(s.solver_revision())
                                                     : std::string("not recorded"));
   if (s.steps() > 0 && s.elements() > 0 && s.wall_time_s() > 0) {

@@ -136,6 +136,9 @@ RunSummary parse_summary_json(const std::string& json) {
   optional("abar_filtered_end", r.abar_filtered_end);
   optional("max_aspect_ratio", r.max_aspect_ratio);
   optional("aspect_ratio_above_10_s", r.aspect_ratio_above_10_s);
+  // 3-D: printed only for a run with tetrahedra (2-D otherwise).
+  if (f.find("dimension") != f.end()) r.dimension = json_count<int>(s, "dimension");
+  optional("thickness_m", r.thickness_m);
   // Phase-field damage: printed only for a run with it.
   if (f.find("damage_onset_s") != f.end()) {
     r.damage = true;

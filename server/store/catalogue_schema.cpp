@@ -209,9 +209,12 @@ ALTER TABLE job_summaries ADD COLUMN crack_energy REAL NOT NULL DEFAULT 0;
 ALTER TABLE job_summaries ADD COLUMN damage_time REAL NOT NULL DEFAULT 0;
 ALTER TABLE job_summaries ADD COLUMN damage_solves INTEGER NOT NULL DEFAULT 0;
 )sql",
-    // 9 -> 10: ExtendJob's link from a job to the SUCCEEDED job it continues.
+    // 9 -> 10: ExtendJob's link from a job to the SUCCEEDED job it continues; the summary's
+    // dimension and 3-D thickness (rows from before: 2-D).
     R"sql(
 ALTER TABLE jobs ADD COLUMN parent_id TEXT NOT NULL DEFAULT '';
+ALTER TABLE job_summaries ADD COLUMN dimension INTEGER NOT NULL DEFAULT 2;
+ALTER TABLE job_summaries ADD COLUMN thickness REAL NOT NULL DEFAULT 0;
 )sql",
 };
 

@@ -77,7 +77,7 @@ using SS = StoredSummary;
 
 // The run's figures: job_summaries' columns for RunSummary (every one of its fields but none
 // of the decimated series).
-const std::array<Column<RS>, 43> kFigures = {{
+const std::array<Column<RS>, 45> kFigures = {{
     count<RS, &RS::elements>("elements"),
     count<RS, &RS::nodes>("nodes"),
     count<RS, &RS::steps>("steps"),
@@ -121,6 +121,8 @@ const std::array<Column<RS>, 43> kFigures = {{
     figure<RS, &RS::crack_energy_J_per_m>("crack_energy"),
     figure<RS, &RS::damage_time_s>("damage_time"),
     count<RS, &RS::damage_solves>("damage_solves"),
+    count<RS, &RS::dimension>("dimension"),
+    figure<RS, &RS::thickness_m>("thickness"),
 }};
 
 // The decimated series a StoredSummary adds: heavy, so read only where they are needed.

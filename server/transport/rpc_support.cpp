@@ -203,6 +203,8 @@ void fill_summary(const std::string& id, const RunSummary& s, v1::JobSummary* re
   resp->set_diagnostics_share(s.diagnostics_share());
   resp->set_output_time_s(s.output_time_s);
   resp->set_output_share(s.output_share());
+  resp->set_dimension(s.dimension);
+  resp->set_thickness_m(s.thickness_m);
   if (s.damage) {
     resp->set_damage(true);
     resp->set_damage_onset_s(s.damage_onset_s);

@@ -28,6 +28,9 @@ class ThreeDimensionalJobTest(DaemonTestCase):
         job_id = self.cli_ok("submit", spec, "--wait").stdout.split()[0]
         summary = self.cli_json("summary", job_id)
         self.assertGreater(int(summary["elements"]), 2000)
+        # The summary says it is 3-D and over which thickness its per-metre figures are.
+        self.assertEqual(int(summary["dimension"]), 3)
+        self.assertAlmostEqual(float(summary["thickness_m"]), 6e-6, delta=1e-12)
 
         # The mid-plane slice (the default z = 0) as CSV: cells inside the disk carry values,
         # the corners of the square raster lie outside it (NaN).

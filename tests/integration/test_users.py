@@ -240,7 +240,9 @@ class UpgradeTest(DaemonTestCase):
 
         db = sqlite3.connect(os.path.join(self.data_dir, "catalogue.sqlite"))
         # Migrations 10 (parent_id) and 9 (the damage figures) back out too, then 8.
-        db.executescript("ALTER TABLE jobs DROP COLUMN parent_id;")
+        db.executescript("ALTER TABLE jobs DROP COLUMN parent_id; "
+                         "ALTER TABLE job_summaries DROP COLUMN dimension; "
+                         "ALTER TABLE job_summaries DROP COLUMN thickness;")
         db.executescript("".join(
             f"ALTER TABLE job_summaries DROP COLUMN {c}; " for c in (
                 "damage", "damage_onset", "max_damaged_volume", "max_damaged_radius",
