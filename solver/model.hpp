@@ -91,7 +91,7 @@ enum class DamageModel {
 
 // How the damage equation's sparse SPD system is solved (damage_solver.hpp).
 enum class DamageLinearSolver {
-  kAuto,       // direct up to kDirectMaxNodes nodes, iterative above
+  kAuto,       // direct up to damage::direct_max_nodes(dim) nodes, iterative above
   kDirect,     // Eigen's SimplicialLDLT (pattern analysed once)
   kIterative,  // Eigen's ConjugateGradient with IncompleteCholesky, warm-started from d
 };

@@ -36,7 +36,7 @@ constexpr double kFixedBytes3dWithGmsh = 70e6;
 constexpr double kBytesPerTetrahedron = 460;
 // Phase-field damage: its matrix, the pattern's analysis and the solver's vectors took +10 / +35 /
 // +206 MB at 19k tetrahedra / 66k triangles / 403k tetrahedra (520-530 B per element), taken as
-// 600 B; the direct solver's LDLT factor (up to kDirectMaxNodes nodes) another +46 / +131 MB on
+// 600 B; the direct solver's LDLT factor (AUTO: up to direct_max_nodes) another +46 / +131 MB on
 // 21.8k / 33.3k-node tetrahedral meshes (~ nodes^2.5; the triangles' factor is within the 600 B).
 constexpr double kDamageBytesPerElement = 600;
 constexpr double kDamageFactorBytes3d = 55e6;  // at kDamageFactorNodes3d nodes, ~ nodes^2.5
@@ -57,7 +57,7 @@ double damage_bytes(const v1::RunSpec& spec, double elements, double nodes, int 
   double bytes = kDamageBytesPerElement * elements;
   const auto solver = spec.damage().linear_solver();
   const bool direct =
-      solver == v1::DIRECT || (solver != v1::ITERATIVE && nodes <= damage::kDirectMaxNodes);
+      solver == v1::DIRECT || (solver != v1::ITERATIVE && nodes <= damage::direct_max_nodes(dim));
   if (dim == 3 && direct)
     bytes += kDamageFactorBytes3d * std::pow(nodes / kDamageFactorNodes3d, 2.5);
   return bytes;

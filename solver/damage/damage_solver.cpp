@@ -94,7 +94,7 @@ DamageSolver<dim>::DamageSolver(const Mesh& mesh, const Coefficients& coefficien
   m.fixed.assign(nn, 0);
   m.fixed_value.assign(nn, 0.0);
   m.direct = kind == DamageLinearSolver::kDirect ||
-             (kind == DamageLinearSolver::kAuto && nn <= kDirectMaxNodes);
+             (kind == DamageLinearSolver::kAuto && nn <= direct_max_nodes(dim));
   // The pattern, once: the fill-reducing ordering and the symbolic factorisation (direct), or the
   // preconditioner's ordering (iterative). Only values change from one step to the next.
   if (m.direct)

@@ -98,7 +98,7 @@ TEST(MemoryEstimate, TheEstimateCoversTheRunsPeakWithinOneAndAHalfTimesIt) {
       {"msh file 20k", R"({"geometry":{"mesh_file":")" + box + "\"}," + run + "}"},
       {"cylinder 20k, damage (model 2, direct)",
        cylinder(20000, R"(,"damage":{"model":"GIOVANARDI"})")},
-      {"cylinder 100k, damage (model 2, direct)",
+      {"cylinder 100k, damage (model 2, iterative)",
        cylinder(100000, R"(,"damage":{"model":"GIOVANARDI"})")},
   };
   for (const Case& c : cases) {
