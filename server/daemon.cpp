@@ -210,6 +210,7 @@ Daemon::Daemon(DaemonConfig config) : impl_(std::make_unique<Impl>()) {
     slurm.max_elements = config.max_elements;
     slurm.max_end_time_s = config.max_end_time_s;
     slurm.max_wall_time_s = config.max_wall_time_s;
+    slurm.checkpoint_interval_s = config.checkpoint_interval_s;
     slurm.array_throttle = config.workers;
     slurm.poll_s = config.slurm_poll_s;
     slurm.max_queued = config.max_queued;

@@ -406,8 +406,11 @@ void SlurmExecutor::submit_batch(const std::vector<JobRecord>& jobs) {
          << " --max-end-time "
          << end_time_text(config_.max_end_time_s)
          // One mesh cache for every node: a grid meshes its geometry once cluster-wide.
-         << " --mesh-cache " << sh_quote(fs::path(config_.shared_dir) / "cache" / "meshes")
-         << " >\"$dir/summary.json\" 2>\"$dir/solve.log\"\n";
+         << " --mesh-cache " << sh_quote(fs::path(config_.shared_dir) / "cache" / "meshes");
+  if (config_.checkpoint_interval_s > 0)  // continued when Slurm or the daemon runs it again
+    script << " --checkpoint-dir \"$dir/checkpoint\" --checkpoint-interval "
+           << end_time_text(config_.checkpoint_interval_s);
+  script << " >\"$dir/summary.json\" 2>\"$dir/solve.log\"\n";
   const fs::path script_path = batches / (name + ".sh");
   write_text(script_path, script.str());
 

@@ -41,7 +41,10 @@ struct SlurmConfig {
   int max_elements = 2'000'000;
   double max_end_time_s = 1e-5;
   double max_wall_time_s = 0;  // 0 = none
-  int array_throttle = 0;      // %N of array jobs; 0 = none
+  // softshock-solve --checkpoint-dir <job>/checkpoint every this many seconds (0 = none): a job
+  // that Slurm requeues (node failure, preemption) or that runs again continues from there.
+  double checkpoint_interval_s = 0;
+  int array_throttle = 0;  // %N of array jobs; 0 = none
   double poll_s = 1.0;
   std::size_t max_queued = 1000;  // not yet submitted + PENDING on Slurm
 };

@@ -1,10 +1,15 @@
 // softshock-solve --spec SPEC.json --out DIR [--threads N] [--max-elements N] [--max-end-time S]
 //                 [--mesh-cache DIR | --no-mesh-cache]
+//                 [--checkpoint-dir DIR [--checkpoint-interval SECONDS]]
 // Runs one spec, writes DIR/result.h5 + DIR/result.xdmf, prints the JSON summary on stdout.
 // Meshes come from a local cache when it has them (solver/mesh_cache.hpp); Gmsh is loaded only
 // when a mesh must be built. Frames are written by a writer thread while the solver steps on.
-// Exit codes: 0 success, 2 invalid spec or usage, 1 run failure (partial file kept, marked
-// incomplete).
+// With --checkpoint-dir the run writes restartable checkpoints there
+// (solver/io/checkpoint_folder.hpp) every --checkpoint-interval of wall time and where
+// SIGTERM/SIGINT stops it, and the same command run again continues from the last one: a run on a
+// cluster node that Slurm preempts, times out or requeues loses at most one interval. The folder
+// goes once the run has finished. Exit codes: 0 success, 2 invalid spec or usage, 1 run failure
+// (partial file kept, marked incomplete).
 #include <unistd.h>
 
 #include <atomic>
@@ -14,13 +19,16 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <filesystem>
 #include <iostream>
 #include <memory>
+#include <optional>
 #include <string>
 #include <utility>
 
 #include "softshock/version.hpp"
 #include "solver/io/async_result_writer.hpp"
+#include "solver/io/checkpoint_folder.hpp"
 #include "solver/mesh_cache.hpp"
 #include "solver/run_spec.hpp"
 #include "solver/run_summary.hpp"
@@ -36,18 +44,24 @@ extern "C" void on_signal(int) {
 // The usage text: on stdout for --help (exit 0), on stderr after a usage error (exit 2).
 int usage(const char* msg) {
   if (msg) std::fprintf(stderr, "softshock-solve: %s\n", msg);
-  std::fprintf(msg ? stderr : stdout,
-               "usage: softshock-solve --spec SPEC.json --out DIR [--threads N] [--quiet]\n"
-               "                       [--max-elements N] [--max-end-time SECONDS]\n"
-               "                       [--mesh-cache DIR | --no-mesh-cache]\n"
-               "  SPEC.json  run spec (protobuf JSON of softshock.v1.RunSpec; {} = baseline)\n"
-               "  DIR        output directory: result.h5, result.xdmf\n"
-               "  --mesh-cache DIR  meshes built once and reused (default $SOFTSHOCK_MESH_CACHE,\n"
-               "             else $XDG_CACHE_HOME/softshock/meshes or ~/.cache/softshock/meshes;\n"
-               "             SOFTSHOCK_MESH_CACHE=off disables; SOFTSHOCK_MESH_CACHE_BYTES bounds\n"
-               "             it, default 512 MiB)\n"
-               "       softshock-solve --help | --version\n"
-               "exit codes: 0 success, 2 invalid spec or usage, 1 run failure\n");
+  std::fprintf(
+      msg ? stderr : stdout,
+      "usage: softshock-solve --spec SPEC.json --out DIR [--threads N] [--quiet]\n"
+      "                       [--max-elements N] [--max-end-time SECONDS]\n"
+      "                       [--mesh-cache DIR | --no-mesh-cache]\n"
+      "                       [--checkpoint-dir DIR [--checkpoint-interval SECONDS]]\n"
+      "  SPEC.json  run spec (protobuf JSON of softshock.v1.RunSpec; {} = baseline)\n"
+      "  DIR        output directory: result.h5, result.xdmf\n"
+      "  --mesh-cache DIR  meshes built once and reused (default $SOFTSHOCK_MESH_CACHE,\n"
+      "             else $XDG_CACHE_HOME/softshock/meshes or ~/.cache/softshock/meshes;\n"
+      "             SOFTSHOCK_MESH_CACHE=off disables; SOFTSHOCK_MESH_CACHE_BYTES bounds\n"
+      "             it, default 512 MiB)\n"
+      "  --checkpoint-dir DIR  restartable checkpoints every --checkpoint-interval seconds of\n"
+      "             wall time (default 600) and where SIGTERM or SIGINT stops the run; run the\n"
+      "             same command again to continue from the last one (bitwise the run that\n"
+      "             never stopped); the folder is removed when the run has finished\n"
+      "       softshock-solve --help | --version\n"
+      "exit codes: 0 success, 2 invalid spec or usage, 1 run failure\n");
   return 2;
 }
 
@@ -91,6 +105,8 @@ int main(int argc, char** argv) {
   int threads = 0;
   bool quiet = false;
   std::string mesh_cache_dir = softshock::default_mesh_cache_dir();
+  std::string checkpoint_dir;
+  double checkpoint_interval_s = 600;
   softshock::SpecLimits limits;  // a host's (softshockd on Slurm) limits, else the defaults
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
@@ -116,6 +132,18 @@ int main(int argc, char** argv) {
       const char* v = value();
       if (!v || !*v) return usage("--mesh-cache needs a directory");
       mesh_cache_dir = v;
+    } else if (a == "--checkpoint-dir") {
+      const char* v = value();
+      if (!v || !*v) return usage("--checkpoint-dir needs a directory");
+      checkpoint_dir = v;
+    } else if (a == "--checkpoint-interval") {
+      const char* v = value();
+      char* end = nullptr;
+      const double x = v ? std::strtod(v, &end) : -1;
+      if (!v || end == v || *end != '\0' || !(x > 0) || !std::isfinite(x)) {
+        return usage("--checkpoint-interval: expects seconds > 0");
+      }
+      checkpoint_interval_s = x;
     } else if (a == "--no-mesh-cache") {
       mesh_cache_dir.clear();
     } else if (a == "--max-elements" || a == "--max-end-time") {
@@ -185,22 +213,76 @@ int main(int argc, char** argv) {
   std::signal(SIGINT, on_signal);
   std::signal(SIGTERM, on_signal);
   try {
-    softshock::AsyncResultWriter writer(out_dir, problem.mesh, softshock::spec_to_json(spec),
-                                        SOFTSHOCK_VERSION);
+    const std::string spec_json = softshock::spec_to_json(spec);
+    const auto options = softshock::make_options(spec);
+    // A previous run's checkpoint of this very run: continue from it.
+    std::optional<softshock::Checkpoint> resume;
+    if (!checkpoint_dir.empty()) {
+      std::string why_not;
+      resume = softshock::load_checkpoint_folder(checkpoint_dir, spec_json, problem.mesh,
+                                                 options.threads, &why_not);
+      if (!why_not.empty())
+        std::fprintf(stderr, "softshock-solve: checkpoint not used: %s\n", why_not.c_str());
+      if (resume)
+        std::fprintf(stderr,
+                     "softshock-solve: continues from its checkpoint at t = %.6g s, step %lld\n",
+                     resume->state.time_s, static_cast<long long>(resume->state.steps));
+    }
+    std::unique_ptr<softshock::AsyncResultWriter> writer_owner =
+        resume ? std::make_unique<softshock::AsyncResultWriter>(
+                     out_dir, problem.mesh, spec_json, SOFTSHOCK_VERSION,
+                     softshock::checkpoint_segments(checkpoint_dir, resume->header),
+                     resume->header.frame_times)
+               : std::make_unique<softshock::AsyncResultWriter>(out_dir, problem.mesh, spec_json,
+                                                                SOFTSHOCK_VERSION);
+    softshock::AsyncResultWriter& writer = *writer_owner;
     ProgressReporter reporter(quiet);
     softshock::RunControl control;
+    const std::string fingerprint = softshock::mesh_fingerprint(problem.mesh);
+    auto next_checkpoint = std::chrono::steady_clock::now();
+    auto take_checkpoint = [&](const softshock::RunState& state) {
+      next_checkpoint = std::chrono::steady_clock::now() +
+                        std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+                            std::chrono::duration<double>(checkpoint_interval_s));
+      std::filesystem::create_directories(checkpoint_dir);
+      softshock::write_checkpoint_folder(
+          writer, checkpoint_dir, spec_json, fingerprint, state, [](const std::string& error) {
+            if (!error.empty())
+              std::fprintf(stderr, "softshock-solve: warning: checkpoint not written: %s\n",
+                           error.c_str());
+          });
+    };
+    if (!checkpoint_dir.empty()) {
+      next_checkpoint += std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+          std::chrono::duration<double>(checkpoint_interval_s));
+      control.checkpoint_due = [&](const softshock::Progress&) {
+        return std::chrono::steady_clock::now() >= next_checkpoint;
+      };
+      control.checkpoint_at_stop = true;
+      control.on_checkpoint = [&](const softshock::RunState& state) {
+        // Where the run stopped: worth keeping only when a signal stopped it.
+        if (state.stopped && !g_cancel.load()) return;
+        take_checkpoint(state);
+      };
+      if (resume) control.resume = &resume->state;
+    }
     control.cancel = &g_cancel;
     control.on_progress = [&](const softshock::Progress& p) { reporter(p); };
     control.on_frame = [&](softshock::FieldFrame f) { writer.write_frame(std::move(f)); };
     control.spare_frame = [&] { return writer.spare_frame(); };
-    const auto result = softshock::run_simulation(problem, softshock::make_options(spec), control);
+    const auto result = softshock::run_simulation(problem, options, control);
     reporter.done();
     auto summary = softshock::summarize(problem, result);
     summary.meshing_time_s = meshing.seconds;
     summary.mesh_cache = softshock::to_string(meshing.cache);
     const bool complete = result.status == softshock::RunStatus::kCompleted;
+    if (!complete && !checkpoint_dir.empty()) writer.drain();  // the stop's checkpoint, durable
     writer.finish(result.history, summary, complete, result.error);
     std::cout << softshock::summary_to_json(summary) << std::endl;
+    if (complete && !checkpoint_dir.empty()) {  // its frames are in the result now
+      std::error_code ec;
+      std::filesystem::remove_all(checkpoint_dir, ec);
+    }
     if (!complete) {
       std::fprintf(stderr, "softshock-solve: run %s: %s (partial result kept in %s)\n",
                    summary.status.c_str(),

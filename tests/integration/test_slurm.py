@@ -55,7 +55,7 @@ class SlurmTest(DaemonTestCase):
 
     def extra_daemon_args(self):
         return ["--executor", "slurm", "--slurm-solver", SOLVE, "--slurm-poll-interval", "0.3",
-                "--slurm-sbatch-arg=--nice=0"]
+                "--slurm-sbatch-arg=--nice=0", "--checkpoint-interval", "30"]
 
     def submit_grid(self, c, **kw):
         g = grid_request(**kw)
@@ -72,6 +72,12 @@ class SlurmTest(DaemonTestCase):
         slurm_s = time.monotonic() - t0
         self.assertEqual(state_name(done), "SUCCEEDED", done)
         self.assertEqual(len(self.batches()), 1, "one array job for the whole grid")
+        # The nodes checkpoint (softshock-solve --checkpoint-dir; a requeued job continues), and
+        # a finished run leaves no checkpoint folder.
+        with open(self.batches()[0][:-len(".ids")] + ".sh") as f:
+            self.assertIn('--checkpoint-dir "$dir/checkpoint" --checkpoint-interval 30', f.read())
+        self.assertEqual(glob.glob(os.path.join(self.data_dir, "slurm", "jobs", "*",
+                                                "checkpoint")), [])
         self.assertIn("(array)", self.daemon.log_tail(200))
 
         # The same grid through the local executor in a separate data dir.

@@ -4,9 +4,11 @@ Run by ctest with SOFTSHOCK_SOLVE pointing at the binary (Debian's /usr/bin/pyth
 """
 import json
 import os
+import signal
 import subprocess
 import sys
 import tempfile
+import time
 import unittest
 
 import h5py
@@ -66,6 +68,45 @@ class SoftshockSolve(unittest.TestCase):
         r = subprocess.run([sys.executable, os.path.join(checks, "check_xdmf_meshio.py"), xdmf]
                            + shape + times, capture_output=True, text=True)
         self.assertEqual(r.returncode, 0, r.stderr)
+
+    def test_checkpoints_continue_a_killed_or_terminated_run_bitwise(self):
+        """--checkpoint-dir: a run killed (SIGKILL) after a checkpoint, or stopped by SIGTERM (as
+        Slurm preempts), continues when the same command runs again, and its result equals the
+        uninterrupted run's in every dataset bit for bit; the folder goes when it finishes."""
+        spec = {"geometry": {"target_elements": 6000},
+                "run": {"end_time": 3e-7, "output_interval": 2e-8, "history_interval": 1e-9}}
+        reference = os.path.join(self.tmp.name, "reference")
+        r = solve(spec, reference)
+        self.assertEqual(r.returncode, 0, r.stderr)
+        compare = os.path.join(os.environ["SOFTSHOCK_SOURCE_DIR"], "scripts", "compare_results.py")
+        spec_path = os.path.join(self.tmp.name, "spec.json")
+        with open(spec_path, "w") as f:
+            json.dump(spec, f)
+        for sig in (signal.SIGKILL, signal.SIGTERM):
+            with self.subTest(signal=sig.name):
+                out = os.path.join(self.tmp.name, "out-" + sig.name)
+                ckpt = os.path.join(self.tmp.name, "ckpt-" + sig.name)
+                argv = [SOLVE, "--spec", spec_path, "--out", out, "--no-mesh-cache", "--quiet",
+                        "--checkpoint-dir", ckpt, "--checkpoint-interval", "0.05"]
+                p = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+                state = os.path.join(ckpt, "state.ckpt")
+                deadline = time.monotonic() + 120
+                while not os.path.exists(state) and p.poll() is None and time.monotonic() < deadline:
+                    time.sleep(0.002)
+                self.assertIsNone(p.poll(), "the run ended before its first checkpoint")
+                p.send_signal(sig)
+                p.communicate(timeout=60)
+                self.assertNotEqual(p.returncode, 0)
+                self.assertTrue(os.path.exists(state))
+                r = subprocess.run(argv, capture_output=True, text=True, timeout=300)
+                self.assertEqual(r.returncode, 0, r.stderr)
+                self.assertIn("continues from its checkpoint at t = ", r.stderr)
+                self.assertNotIn("checkpoint not used", r.stderr)
+                same = subprocess.run([sys.executable, compare, os.path.join(reference, "result.h5"),
+                                       os.path.join(out, "result.h5")],
+                                      capture_output=True, text=True)
+                self.assertEqual(same.returncode, 0, same.stdout + same.stderr)
+                self.assertFalse(os.path.exists(ckpt), "the checkpoint folder outlived the run")
 
     def test_python_reader_reads_format_versions_1_and_2_alike(self):
         from softshock_client.results import ResultFile
