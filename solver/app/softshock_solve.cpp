@@ -223,19 +223,27 @@ int main(int argc, char** argv) {
                                                  options.threads, &why_not);
       if (!why_not.empty())
         std::fprintf(stderr, "softshock-solve: checkpoint not used: %s\n", why_not.c_str());
-      if (resume)
-        std::fprintf(stderr,
-                     "softshock-solve: continues from its checkpoint at t = %.6g s, step %lld\n",
-                     resume->state.time_s, static_cast<long long>(resume->state.steps));
     }
-    std::unique_ptr<softshock::AsyncResultWriter> writer_owner =
-        resume ? std::make_unique<softshock::AsyncResultWriter>(
-                     out_dir, problem.mesh, spec_json, SOFTSHOCK_VERSION,
-                     softshock::checkpoint_segments(checkpoint_dir, resume->header),
-                     resume->header.frame_times)
-               : std::make_unique<softshock::AsyncResultWriter>(out_dir, problem.mesh, spec_json,
-                                                                SOFTSHOCK_VERSION);
+    std::unique_ptr<softshock::AsyncResultWriter> writer_owner;
+    if (resume) {
+      try {
+        writer_owner = std::make_unique<softshock::AsyncResultWriter>(
+            out_dir, problem.mesh, spec_json, SOFTSHOCK_VERSION,
+            softshock::checkpoint_segments(checkpoint_dir, resume->header),
+            resume->header.frame_times);
+      } catch (const std::exception& e) {  // its frame files do not match: from t = 0
+        std::fprintf(stderr, "softshock-solve: checkpoint not used: %s\n", e.what());
+        resume.reset();
+      }
+    }
+    if (!writer_owner)
+      writer_owner = std::make_unique<softshock::AsyncResultWriter>(out_dir, problem.mesh,
+                                                                    spec_json, SOFTSHOCK_VERSION);
     softshock::AsyncResultWriter& writer = *writer_owner;
+    if (resume)
+      std::fprintf(stderr,
+                   "softshock-solve: continues from its checkpoint at t = %.6g s, step %lld\n",
+                   resume->state.time_s, static_cast<long long>(resume->state.steps));
     ProgressReporter reporter(quiet);
     softshock::RunControl control;
     const std::string fingerprint = softshock::mesh_fingerprint(problem.mesh);
