@@ -255,6 +255,7 @@ std::vector<double> flatten(const std::vector<std::vector<double>>& rows, std::s
 }  // namespace
 
 void CheckpointChecksum::update(const void* data, std::size_t bytes) {
+  if (bytes == 0) return;  // an empty vector's data() may be null, which memcpy must not see
   const auto* p = static_cast<const unsigned char*>(data);
   length_ += bytes;
   auto word = [this](const unsigned char* w) {
