@@ -23,6 +23,26 @@ TEST(RunSpec, JsonMappingUsesDocumentedFieldNames) {
   EXPECT_FALSE(spec.material().has_density());
 }
 
+// Every example spec in examples/ is valid as shipped; the damage example is the baseline with
+// damage on a mesh where l = 5 um spans >= 5 elements (docs/verification.md, "Phase-field damage").
+TEST(RunSpec, TheExampleSpecsAreValid) {
+  for (const char* name :
+       {"baseline", "baseline_damage", "thesis_p1", "richtmyer_meshkov", "richtmyer_meshkov_3d"}) {
+    SCOPED_TRACE(name);
+    const std::string path = std::string(SOFTSHOCK_SOURCE_DIR) + "/examples/" + name + ".json";
+    EXPECT_NO_THROW(normalize_spec(read_spec_file(path)));
+  }
+  v1::RunSpec damage =
+      read_spec_file(std::string(SOFTSHOCK_SOURCE_DIR) + "/examples/baseline_damage.json");
+  const v1::RunSpec baseline =
+      read_spec_file(std::string(SOFTSHOCK_SOURCE_DIR) + "/examples/baseline.json");
+  EXPECT_EQ(damage.damage().model(), v1::TALAMINI);
+  EXPECT_EQ(damage.geometry().target_elements(), 66000);
+  damage.clear_damage();
+  damage.mutable_geometry()->set_target_elements(baseline.geometry().target_elements());
+  EXPECT_EQ(spec_to_json(damage), spec_to_json(baseline));
+}
+
 TEST(RunSpec, DefaultsAreTheThesisBaseline) {
   const auto s = normalize_spec(parse_spec_json("{}"));
   EXPECT_DOUBLE_EQ(s.geometry().disk().radius(), 90e-6);
