@@ -1,8 +1,11 @@
 #include "solver/resource_estimate.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
+#include <limits>
 #include <numbers>
+#include <vector>
 
 #include "solver/continuum.hpp"
 #include "solver/damage/damage_solver.hpp"
@@ -45,6 +48,22 @@ constexpr double kNodesPerTetrahedron = 0.22;
 constexpr double kFrameBytesPerTetrahedron = 6 * 8 + kNodesPerTetrahedron * 2 * 3 * 8;
 // Nodes (3 doubles), tetrahedra (4 int32), boundary faces (3 int32, ~0.1 per tetrahedron).
 constexpr double kMeshBytesPerTetrahedron = kNodesPerTetrahedron * 24 + 16 + 0.1 * 12;
+
+// The step model (estimate_steps), fitted per element to the solver's step counts on 24 runs
+// (docs/reliability.md, "Time steps"): the passage's mean step over the compressed step, and the
+// later mean step over the step at rest.
+struct StepFactors {
+  double load, rest;
+};
+constexpr StepFactors kStepFactors2d{1.2, 0.5}, kStepFactors3d{1.0, 0.4};
+// The meshers' smallest and 1st-percentile element altitudes over the mean element's (equilateral
+// triangle or regular tetrahedron of the mean area or volume), measured on their meshes
+// (docs/reliability.md) and rounded down: concentric rings 0.718 / 0.75 (4k-66k triangles),
+// 0.59-0.60 / 0.63 extruded (20k, 100k tetrahedra); Gmsh 0.61 / 0.78 (rounded square), 0.28 /
+// 0.50 (cylinder: slivers); the structured corrugated strip 0.75 / 0.75 and box 0.72 / 0.73.
+constexpr MeshAltitudes kRingAltitudes2d{0.70, 0.74}, kGmshAltitudes2d{0.55, 0.70},
+    kStructuredAltitudes2d{0.72, 0.72}, kRingAltitudes3d{0.57, 0.60}, kGmshAltitudes3d{0.25, 0.45},
+    kStructuredAltitudes3d{0.70, 0.70};
 
 bool has_damage(const v1::RunSpec& spec) {
   return spec.has_damage() && spec.damage().model() != v1::NONE &&
@@ -94,53 +113,158 @@ double spec_volume_m3(const v1::RunSpec& spec) {
 
 namespace {
 
-// The stable step for a smallest element altitude `altitude` (uncompressed) at the load.
-double stable_dt_at_load(const v1::RunSpec& spec, double altitude0, double mass_factor) {
+// The stable step of the smallest element (reference altitude altitude0) in the Tait state at
+// `pressure`: J^-n = 1 + n p / kappa, c^2 = (K + 4 mu / 3) J / rho0 (the solver's own laws,
+// continuum.hpp), the altitude shortened by J (a shock compresses along its normal). Under the
+// load the artificial viscosity inside the front, where the compression measure z (velocity jump
+// across an element over the sound speed) stays below ~0.5, adds q ~ c (c2 + c1 z); at rest only
+// the physical viscosity 4/3 eta J / (rho0 h) acts. dt = cfl h / (q + sqrt(q^2 + c^2)) times the
+// mass blend's factor (continuum::stable_step_sq_kinematic, with the kinematic viscosity q h).
+double stable_dt(const v1::RunSpec& spec, double altitude0, double mass_factor, double pressure,
+                 bool shocked) {
   const auto& m = spec.material();
   const double kappa = m.bulk_modulus(), n = m.tait_gamma() + 1.0;
-  const double pressure = std::max(0.0, spec.load().pressure());
-  // The Tait state at the load's pressure, p = (kappa / n)(J^-n - 1), and its wave speed: the
-  // solver's own laws (continuum.hpp).
-  const double j_minus_n = 1.0 + n * pressure / kappa;
+  const double j_minus_n = 1.0 + n * std::max(0.0, pressure) / kappa;
   const double j = std::pow(j_minus_n, -1.0 / n);
   const double bulk = continuum::tait_bulk_modulus(kappa, j_minus_n);
   const double c_sq = continuum::longitudinal_speed_sq(bulk, m.shear_modulus(), m.density(), j);
   const double c = std::sqrt(c_sq);
-  const double altitude = altitude0 * j;
-  const double h = 0.2 * altitude;
-  // The viscous term of the solver's step, h / (q + sqrt(q^2 + c^2)) (continuum::stable_step_sq):
-  // the artificial viscosity inside a shock front, where the compression measure z (velocity
-  // jump across an element over the sound speed) stays below ~0.5, gives q ~ c (c2 + c1 z); the
-  // physical one q = 4/3 eta J / (rho0 h), on the typical element (the fifth above is for the
-  // acoustic limit of a graded mesh's smallest element).
-  const double q = c * (spec.viscosity().c2() + 0.5 * spec.viscosity().c1()) +
-                   4.0 / 3.0 * m.shear_viscosity() * j / (m.density() * altitude);
-  // h / (q + sqrt(q^2 + c^2)), the damped oscillator's limit, with the kinematic viscosity q h.
+  const double h = altitude0 * j;
+  const double q = (shocked ? c * (spec.viscosity().c2() + 0.5 * spec.viscosity().c1()) : 0.0) +
+                   4.0 / 3.0 * m.shear_viscosity() * j / (m.density() * h);
   return spec.run().cfl() * mass_factor *
          std::sqrt(continuum::stable_step_sq_kinematic(h * h, c_sq, q * h));
 }
 
+// The load's shock speed, U^2 = p / (rho0 (1 - J)) (mass and momentum across the front, the
+// Tait state behind it); the longitudinal sound speed for a load too weak to compress.
+double shock_speed(const v1::RunSpec& spec) {
+  const auto& m = spec.material();
+  const double kappa = m.bulk_modulus(), n = m.tait_gamma() + 1.0;
+  const double p = std::max(0.0, spec.load().pressure());
+  const double j = std::pow(1.0 + n * p / kappa, -1.0 / n);
+  const double c0 =
+      std::sqrt(continuum::longitudinal_speed_sq(kappa, m.shear_modulus(), m.density(), 1.0));
+  return 1.0 - j > 1e-9 ? std::max(c0, std::sqrt(p / (m.density() * (1.0 - j)))) : c0;
+}
+
+// A generated mesh's altitudes over its mean element's.
+MeshAltitudes altitude_ratios(const v1::RunSpec& spec, int dim) {
+  const auto& g = spec.geometry();
+  if (g.has_corrugated_strip()) return kStructuredAltitudes2d;
+  if (g.has_corrugated_box()) return kStructuredAltitudes3d;
+  const bool rings = g.mesher() == v1::CONCENTRIC_RINGS;
+  if (dim == 2) return rings ? kRingAltitudes2d : kGmshAltitudes2d;
+  return rings ? kRingAltitudes3d : kGmshAltitudes3d;
+}
+
 }  // namespace
 
-double estimate_stable_dt(const v1::RunSpec& spec, double elements, double area_m2) {
-  // Equilateral triangle of area a: altitude sqrt(sqrt(3) a); the smallest of a graded mesh
-  // is taken as a fifth of that (checked against the solver: tests/server/test_admission.cpp).
-  const double mean_area = area_m2 / std::max(1.0, elements);
-  return stable_dt_at_load(spec, std::sqrt(std::sqrt(3.0) * mean_area),
-                           mass_blend_step_factor(spec.element().mass_blend()));
+double crossing_length_m(const v1::RunSpec& spec) {
+  const auto& g = spec.geometry();
+  if (g.has_disk()) return g.disk().radius();
+  if (g.has_cylinder()) return g.cylinder().radius();
+  if (g.has_rounded_square()) return 0.5 * g.rounded_square().side();
+  if (g.has_corrugated_strip()) return g.corrugated_strip().height();
+  if (g.has_corrugated_box()) return g.corrugated_box().lz();
+  return std::nan("");
 }
 
-double estimate_stable_dt_3d(const v1::RunSpec& spec, double elements, double volume_m3) {
-  const double mean_volume = volume_m3 / std::max(1.0, elements);
-  return stable_dt_at_load(spec, continuum::regular_tetrahedron_altitude(mean_volume),
-                           1.0 / std::sqrt(1.0 + 0.8 * spec.element().mass_blend()));
+double mesh_crossing_length_m(const Mesh& mesh) {
+  double extent = 0;
+  for (const auto* c : {&mesh.x, &mesh.y}) {
+    if (c->empty()) continue;
+    const auto [lo, hi] = std::minmax_element(c->begin(), c->end());
+    extent = std::max(extent, *hi - *lo);
+  }
+  return 0.5 * extent;
 }
 
-ResourceEstimate estimate_resources(const v1::RunSpec& spec, double elements, double area_m2) {
+MeshAltitudes mesh_altitudes(const Mesh& mesh) {
+  std::vector<double> altitude_sq;  // per element
+  altitude_sq.reserve(mesh.element_count());
+  if (mesh.dimension() == 2) {
+    for (const auto& t : mesh.triangles) {
+      const double e1x = mesh.x[t[1]] - mesh.x[t[0]], e1y = mesh.y[t[1]] - mesh.y[t[0]];
+      const double e2x = mesh.x[t[2]] - mesh.x[t[0]], e2y = mesh.y[t[2]] - mesh.y[t[0]];
+      altitude_sq.push_back(continuum::smallest_altitude_sq(e1x, e1y, e2x, e2y));
+    }
+  }
+  using Point = std::array<double, 3>;
+  auto minus = [](const Point& a, const Point& b) -> Point {
+    return {a[0] - b[0], a[1] - b[1], a[2] - b[2]};
+  };
+  auto cross = [](const Point& a, const Point& b) -> Point {
+    return {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
+  };
+  auto dot = [](const Point& a, const Point& b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; };
+  constexpr int kFaces[4][3] = {{0, 1, 2}, {0, 1, 3}, {0, 2, 3}, {1, 2, 3}};
+  for (const auto& t : mesh.tetrahedra) {  // empty for triangles
+    std::array<Point, 4> p;
+    for (int a = 0; a < 4; ++a) p[a] = {mesh.x[t[a]], mesh.y[t[a]], mesh.z[t[a]]};
+    const double six_volume = dot(cross(minus(p[1], p[0]), minus(p[2], p[0])), minus(p[3], p[0]));
+    double largest_face_sq = 0;
+    for (const auto& f : kFaces) {
+      const Point n = cross(minus(p[f[1]], p[f[0]]), minus(p[f[2]], p[f[0]]));
+      largest_face_sq = std::max(largest_face_sq, dot(n, n));
+    }
+    altitude_sq.push_back(continuum::smallest_altitude_sq(six_volume, largest_face_sq));
+  }
+  if (altitude_sq.empty()) return {};
+  const auto percentile1 =
+      altitude_sq.begin() + static_cast<std::ptrdiff_t>(altitude_sq.size() / 100);
+  std::nth_element(altitude_sq.begin(), percentile1, altitude_sq.end());
+  const double p1 = *percentile1;
+  return {std::sqrt(*std::min_element(altitude_sq.begin(), percentile1 + 1)), std::sqrt(p1)};
+}
+
+StepEstimate estimate_steps(const v1::RunSpec& spec, const MeshAltitudes& altitudes, int dim,
+                            double crossing_length) {
+  const double mass_factor = dim == 2 ? mass_blend_step_factor(spec.element().mass_blend())
+                                      : 1.0 / std::sqrt(1.0 + 0.8 * spec.element().mass_blend());
+  const StepFactors factors = dim == 2 ? kStepFactors2d : kStepFactors3d;
+  StepEstimate e;
+  e.dt_rest_s = stable_dt(spec, altitudes.smallest_m, mass_factor, 0.0, false);
+  // Many elements are compressed at once: the step follows the compressed step of a low percentile
+  // of the altitudes, unless the one smallest element at rest is slower still.
+  e.dt_load_s = std::min(e.dt_rest_s, stable_dt(spec, altitudes.percentile1_m, mass_factor,
+                                                spec.load().pressure(), true));
+  e.passage_s = std::max(0.0, spec.load().duration()) + 2.0 * crossing_length / shock_speed(spec);
+  // Faces bonded to the glass hold the rim's corners while the rim moves: their elements stay
+  // strained and the step stays near dt_load after the passage too (measured: a 50 um layer's
+  // mean step over 200 ns is dt_load's).
+  const auto& g = spec.geometry();
+  if (g.has_cylinder() && g.cylinder().faces() == v1::BONDED) e.passage_s = HUGE_VAL;
+  const double end = spec.run().end_time();
+  e.steps = std::min(end, e.passage_s) / (factors.load * e.dt_load_s) +
+            std::max(0.0, end - e.passage_s) / (factors.rest * e.dt_rest_s);
+  return e;
+}
+
+namespace {
+
+// The steps of a generated mesh's run from its element count (altitudes NaN) or of a given mesh.
+StepEstimate steps_for(const v1::RunSpec& spec, int dim, double mean_altitude,
+                       MeshAltitudes altitudes, double crossing_length) {
+  if (std::isnan(altitudes.smallest_m)) {
+    const MeshAltitudes ratio = altitude_ratios(spec, dim);
+    altitudes = {ratio.smallest_m * mean_altitude, ratio.percentile1_m * mean_altitude};
+  }
+  if (std::isnan(crossing_length)) crossing_length = crossing_length_m(spec);
+  return estimate_steps(spec, altitudes, dim, crossing_length);
+}
+
+}  // namespace
+
+ResourceEstimate estimate_resources(const v1::RunSpec& spec, double elements, double area_m2,
+                                    const MeshAltitudes& altitudes, double crossing_length) {
   const auto& r = spec.run();
   ResourceEstimate e;
-  e.dt_s = estimate_stable_dt(spec, elements, area_m2);
-  e.steps = r.end_time() / e.dt_s;
+  // The equilateral triangle of the mean area a has the altitude sqrt(sqrt(3) a).
+  const double mean_altitude = std::sqrt(std::sqrt(3.0) * area_m2 / std::max(1.0, elements));
+  const StepEstimate steps = steps_for(spec, 2, mean_altitude, altitudes, crossing_length);
+  e.dt_s = steps.dt_load_s;
+  e.steps = steps.steps;
   const double samples = std::floor(r.end_time() / r.history_interval()) + 1;
   const double history_bytes = samples * (kHistoryColumns + r.modes() + 1) * 8;
   const double frames =
@@ -153,11 +277,15 @@ ResourceEstimate estimate_resources(const v1::RunSpec& spec, double elements, do
   return e;
 }
 
-ResourceEstimate estimate_resources_3d(const v1::RunSpec& spec, double elements, double volume_m3) {
+ResourceEstimate estimate_resources_3d(const v1::RunSpec& spec, double elements, double volume_m3,
+                                       const MeshAltitudes& altitudes, double crossing_length) {
   const auto& r = spec.run();
   ResourceEstimate e;
-  e.dt_s = estimate_stable_dt_3d(spec, elements, volume_m3);
-  e.steps = r.end_time() / e.dt_s;
+  const double mean_altitude =
+      continuum::regular_tetrahedron_altitude(volume_m3 / std::max(1.0, elements));
+  const StepEstimate steps = steps_for(spec, 3, mean_altitude, altitudes, crossing_length);
+  e.dt_s = steps.dt_load_s;
+  e.steps = steps.steps;
   const double samples = std::floor(r.end_time() / r.history_interval()) + 1;
   // The modes twice: at the mid-plane and averaged over the thickness.
   const double history_bytes = samples * (kHistoryColumns + 2 * (r.modes() + 1)) * 8;
@@ -186,8 +314,12 @@ ResourceEstimate estimate_spec_resources(const v1::RunSpec& spec) {
 
 ResourceEstimate estimate_mesh_resources(const v1::RunSpec& spec, const Mesh& mesh) {
   const double elements = static_cast<double>(mesh.element_count());
-  return mesh.dimension() == 3 ? estimate_resources_3d(spec, elements, mesh_volume(mesh))
-                               : estimate_resources(spec, elements, mesh_area(mesh));
+  const MeshAltitudes altitudes = mesh_altitudes(mesh);
+  double crossing = crossing_length_m(spec);
+  if (std::isnan(crossing)) crossing = mesh_crossing_length_m(mesh);
+  return mesh.dimension() == 3
+             ? estimate_resources_3d(spec, elements, mesh_volume(mesh), altitudes, crossing)
+             : estimate_resources(spec, elements, mesh_area(mesh), altitudes, crossing);
 }
 
 }  // namespace softshock

@@ -3,9 +3,11 @@
 // (softshockd: --max-steps, --max-job-memory, --max-job-disk). Estimates, not bounds: each
 // formula is meant to err on the high side by a small factor (docs/reliability.md).
 //
-// One function holds the stable-step estimate: when the model's time step changes (a physical
-// viscosity term, say), update estimate_stable_dt() and its test, nothing else.
+// One function holds the stable-step estimate (stable_dt in the .cpp): when the model's time step
+// changes (a physical viscosity term, say), update it and its test, nothing else.
 #pragma once
+
+#include <cmath>
 
 #include "softshock/v1/spec.pb.h"
 #include "solver/mesh.hpp"
@@ -13,26 +15,51 @@
 namespace softshock {
 
 struct ResourceEstimate {
-  double dt_s = 0;          // stable time step at the load (smallest element, compressed)
-  double steps = 0;         // end_time / dt_s
+  double dt_s = 0;          // the step while the load's shock crosses the body (dt_load)
+  double steps = 0;         // time steps to run.end_time (estimate_steps)
   double memory_bytes = 0;  // mesh + state + history (kept and copied once) + one frame
   double disk_bytes = 0;    // frames x fields + history + mesh
 };
 
-// The stable step of a normalized spec's material at the load: the Tait law K(J) = kappa J^-n
-// (n = gamma + 1) at pressure P gives J^-n = 1 + n P / kappa; c^2 = (K + 4 mu / 3) J / rho0;
-// the smallest altitude h of a triangle of mean area area/elements (a fifth of an equilateral
-// triangle's, for mesh grading) shrinks with J. dt = cfl h J / c.
-double estimate_stable_dt(const v1::RunSpec& spec, double elements, double area_m2);
+// A mesh's smallest element altitude and the 1st percentile of its elements' altitudes
+// (reference configuration), m; NaN: not known (a mesh still to be generated).
+struct MeshAltitudes {
+  double smallest_m = std::nan(""), percentile1_m = std::nan("");
+};
+MeshAltitudes mesh_altitudes(const Mesh& mesh);
 
-// The whole estimate for `elements` triangles covering `area_m2`.
-ResourceEstimate estimate_resources(const v1::RunSpec& spec, double elements, double area_m2);
+// The time steps of a run. The solver's step is the smallest over the elements and follows the
+// compressed ones: while the load's shock crosses the body and comes back to the loaded surface
+// (the passage: load.duration + 2 L / U, L the crossing length, U the shock speed at the load,
+// U^2 = p / (rho0 (1 - J))) it is near dt_load, the stable step of the 1st-percentile element in
+// the Tait state at the load's pressure (altitude shortened by J, the front's artificial
+// viscosity); after it the body rings with weaker waves and the step stays below the smallest
+// element's at rest, dt_rest. steps = min(T, passage) / (a dt_load) + max(0, T - passage) /
+// (b dt_rest), a and b fitted per dimension to the solver's counts; bonded cylinder faces keep
+// dt_load to the end (docs/reliability.md, "Time steps": 0.99-1.75x the steps taken on 36 runs of
+// triangles and tetrahedra; a mesh that collapses, as the Richtmyer-Meshkov box's jets, is not
+// foreseen).
+struct StepEstimate {
+  double dt_load_s = 0, dt_rest_s = 0, passage_s = 0, steps = 0;
+};
+StepEstimate estimate_steps(const v1::RunSpec& spec, const MeshAltitudes& altitudes, int dim,
+                            double crossing_length_m);
 
-// The same for tetrahedra: the smallest altitude taken as a fifth of the regular tetrahedron's
-// of the mean volume (the extruded ring meshes' worst is ~0.4 of it), shrunk by J under the load;
-// memory and frames per tetrahedron measured (docs/reliability.md).
-double estimate_stable_dt_3d(const v1::RunSpec& spec, double elements, double volume_m3);
-ResourceEstimate estimate_resources_3d(const v1::RunSpec& spec, double elements, double volume_m3);
+// The whole estimate for `elements` triangles covering `area_m2` (tetrahedra filling `volume_m3`);
+// altitudes: the mesh's, or NaN for a mesh still to be generated (the mesher's measured ratios to
+// the mean element's altitude); crossing_length: NaN for the spec geometry's.
+ResourceEstimate estimate_resources(const v1::RunSpec& spec, double elements, double area_m2,
+                                    const MeshAltitudes& altitudes = {},
+                                    double crossing_length = std::nan(""));
+ResourceEstimate estimate_resources_3d(const v1::RunSpec& spec, double elements, double volume_m3,
+                                       const MeshAltitudes& altitudes = {},
+                                       double crossing_length = std::nan(""));
+
+// The distance the load's shock crosses before it turns back: a disk's or cylinder's radius, half a
+// rounded square's side, a corrugated strip's height or box's lz; NaN for a mesh file, whose
+// mesh gives half its largest in-plane extent (mesh_crossing_length_m).
+double crossing_length_m(const v1::RunSpec& spec);
+double mesh_crossing_length_m(const Mesh& mesh);
 
 // The reference area of a normalized spec's 2-D geometry (disk, rounded square, strip), the volume
 // of a 3-D one (cylinder, corrugated box); NaN for a mesh_file (known once meshed) and for the

@@ -35,8 +35,7 @@ void check_admission(const v1::RunSpec& spec, const ResourceEstimate& e,
   if (!(e.steps <= limits.max_steps)) {
     throw SpecError("run.end_time",
                     "the run needs about " + number(e.steps) +
-                        " time steps (run.end_time / a "
-                        "stable step of about " +
+                        " time steps (over run.end_time, at a stable step of about " +
                         number(e.dt_s) +
                         " s, set by the geometry's size "
                         "per geometry.target_elements, the material and load.pressure), more than "
