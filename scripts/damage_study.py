@@ -1,0 +1,241 @@
+#!/usr/bin/python3
+"""The disk with phase-field damage (docs/verification.md, "Phase-field damage"): the default
+baseline (R0 = 90 um, 2 GPa for 8 ns) with each damage model at its defaults (l = eps = 5 um,
+eps_f = 2 MPa, G = 10 J/m^2, N_d = 4).
+
+Part 1, convergence (to --short-end, default 60 ns) on four ring meshes (16.5k, 66k, 150k, 264k
+triangles: l = 2.9, 5.7, 8.5, 11.4 elements): when damage starts, when the centre goes into
+tension, the largest damage in the outer ring (r > 80 um: the release's overshoot there) before
+--eval-time (56 ns), the centre's damaged zone (radius, area with d >= 1/2, the radius opened to
+J > 1.1) and the damage dissipation at --eval-time, and when and how much the rim is damaged.
+
+Part 2, the late answer (to --long-end, default 400 ns) on --long-mesh (default 66k) with no
+damage and each model: the centre's damaged zone against time, A-bar(t), the dominant rim mode,
+the rim's reflections; docs/img/damage_zone.png and docs/img/damage_abar.png.
+
+Prints markdown tables and writes --out/figures.json.
+
+  scripts/damage_study.py [--solver build/solver/softshock-solve] [--out DIR] [--threads 2]
+      [--sizes 16500,66000,150000,264000] [--short-end 60e-9] [--eval-time 56e-9] [--long-mesh 66000]
+      [--long-end 400e-9] [--img docs/img] [--skip-long]
+"""
+import argparse
+import json
+import os
+import subprocess
+import time
+
+import h5py
+import numpy as np
+
+RIM_RING_M = 80e-6  # the outer ring where the release's overshoot sits (r > 80 um)
+CENTRE_M = 60e-6  # the centre's damaged zone: damaged nodes within 60 um of the centre
+
+
+def run(solver, spec, out, threads):
+    """Runs the spec in `out`, reusing a finished run of the same spec there."""
+    os.makedirs(out, exist_ok=True)
+    path, done = os.path.join(out, "spec.json"), os.path.join(out, "summary.json")
+    if os.path.exists(done) and os.path.exists(path):
+        with open(path) as f, open(done) as g:
+            if json.load(f) == spec:
+                return json.load(g)
+    with open(path, "w") as f:
+        json.dump(spec, f)
+    started = time.monotonic()
+    p = subprocess.run([solver, "--spec", path, "--out", out, "--quiet", "--threads", str(threads)],
+                       capture_output=True, text=True)
+    if p.returncode not in (0, 1) or not p.stdout.strip():
+        raise SystemExit(f"{out}: softshock-solve failed ({p.returncode}): {p.stderr[-2000:]}")
+    summary = json.loads(p.stdout.strip().splitlines()[-1])
+    summary["seconds"] = time.monotonic() - started
+    with open(done, "w") as f:
+        json.dump(summary, f)
+    return summary
+
+
+def spec(elements, end, model, output_interval):
+    s = {"geometry": {"target_elements": elements},
+         "run": {"end_time": end, "output_interval": output_interval}}
+    if model != "NONE":
+        s["damage"] = {"model": model}
+    return s
+
+
+def zone_radius(r, inside):
+    """The radius of the zone around the centre where `inside` holds: the first 1 um ring out from
+    the centre in which fewer than half the points are inside (0 if the centre is not)."""
+    rings = np.floor(r / 1e-6).astype(int)
+    count = np.bincount(rings)
+    hits = np.bincount(rings, weights=inside.astype(float), minlength=count.size)
+    for k in range(count.size):
+        if count[k] and hits[k] < 0.5 * count[k]:
+            return k * 1e-6
+    return count.size * 1e-6
+
+
+def zones(out):
+    """Per frame: time, the outer ring's largest d, the centre zone's radius (zone_radius of the
+    nodes with d >= 1/2), the number of such nodes within CENTRE_M, the opened cavity's radius
+    (zone_radius of the elements at J > 1.1), the largest J within CENTRE_M, and the reference area
+    of elements with mean d >= 1/2 within CENTRE_M and beyond RIM_RING_M."""
+    rows = []
+    with h5py.File(os.path.join(out, "result.h5"), "r") as f:
+        nodes = f["mesh/nodes"][:]
+        r = np.hypot(nodes[:, 0], nodes[:, 1])
+        tri = f["mesh/triangles"][:]
+        centroid = nodes[tri].mean(axis=1)
+        rc = np.hypot(centroid[:, 0], centroid[:, 1])
+        e1, e2 = nodes[tri[:, 1]] - nodes[tri[:, 0]], nodes[tri[:, 2]] - nodes[tri[:, 0]]
+        area = 0.5 * np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])
+        for name in sorted(f["fields"].keys()):
+            g = f["fields"][name]
+            if "damage" not in g:
+                continue
+            d = g["damage"][:].ravel()
+            j = g["J"][:].ravel()
+            centre = (r < CENTRE_M) & (d >= 0.5)
+            damaged = d[tri].mean(axis=1) >= 0.5
+            rows.append((float(g.attrs["time"]), float(d[r > RIM_RING_M].max()),
+                         zone_radius(r, d >= 0.5), int(centre.sum()), zone_radius(rc, j > 1.1),
+                         float(j[rc < CENTRE_M].max()),
+                         float(area[damaged & (rc < CENTRE_M)].sum()),
+                         float(area[damaged & (rc > RIM_RING_M)].sum())))
+    return rows
+
+
+def history(out):
+    with h5py.File(os.path.join(out, "result.h5"), "r") as f:
+        ts = f["timeseries"]
+        h = {k: ts[k][:] for k in ts.keys()}
+        h["modes"] = f["modes/amplitude"][:]
+    return h
+
+
+def centre_tension_from(h):
+    """When the centre goes into tension (> 1 MPa) after the shock's focus (its largest
+    compression); the precursor before the shock is a few pascals."""
+    s, t = h["center_mean_stress"], h["time"]
+    focus = int(np.argmin(s))
+    after = np.nonzero(s[focus:] > 1e6)[0]
+    return float(t[focus + after[0]]) if after.size else float("nan")
+
+
+def short_study(a):
+    rows = []
+    for n in a.sizes:
+        for model in ("TALAMINI", "GIOVANARDI"):
+            out = os.path.join(a.out, f"short_{model.lower()}_{n}")
+            s = run(a.solver, spec(n, a.short_end, model, 2e-9), out, a.threads)
+            h, z = history(out), zones(out)
+            # The centre's figures at --eval-time (before the wave reflected at the rim damages
+            # it, ~60 ns), the rim's at the end.
+            k = int(np.argmin([abs(x[0] - a.eval_time) for x in z]))
+            i = int(np.argmin(np.abs(h["time"] - a.eval_time)))
+            rows.append({
+                "model": model, "elements": s["elements"], "steps": s["steps"],
+                "minutes": round(s["seconds"] / 60, 1), "solves": s.get("damage_solves", 0),
+                "onset_ns": (s.get("damage_onset_s") or float("nan")) * 1e9,
+                "rim_max_d_before_eval": max(x[1] for x in z[:k + 1]),
+                "centre_radius_um": z[k][2] * 1e6,
+                "open_radius_um": z[k][4] * 1e6,
+                "centre_area_um2": z[k][6] * 1e12,
+                "dissipation_mJ_per_m": float(h["damage_dissipation"][i]) * 1e3,
+                "rim_damage_from_ns": next((x[0] * 1e9 for x in z if x[1] >= 0.5), float("nan")),
+                "rim_area_end_um2": z[-1][7] * 1e12,
+                "centre_tension_from_ns": centre_tension_from(h) * 1e9,
+            })
+            print(json.dumps(rows[-1]), flush=True)
+    return rows
+
+
+def long_study(a):
+    runs = {}
+    for model in ("NONE", "TALAMINI", "GIOVANARDI"):
+        out = os.path.join(a.out, f"long_{model.lower()}_{a.long_mesh}")
+        s = run(a.solver, spec(a.long_mesh, a.long_end, model, 5e-9), out, a.threads)
+        h = history(out)
+        z = zones(out) if model != "NONE" else []
+        mode = int(np.argmax(h["modes"][-1][2:]) + 2)
+        runs[model] = {"summary": s, "history": h, "zones": z}
+        print(json.dumps({"model": model, "minutes": round(s["seconds"] / 60, 1),
+                          "status": s["status"], "max_abar_filtered": s["max_abar_filtered"],
+                          "abar_filtered_end": s["abar_filtered_end"], "dominant_mode_end": mode,
+                          "rim_reflections_ns": [x * 1e9 for x in (s.get("rim_reflections_s") or [])[:3]],
+                          "largest_centre_radius_um": max((x[2] for x in z), default=0) * 1e6,
+                          "largest_open_radius_um": max((x[4] for x in z), default=0) * 1e6,
+                          "open_radius_end_um": z[-1][4] * 1e6 if z else 0.0,
+                          "largest_j_centre": max((x[5] for x in z), default=0),
+                          "dissipation_mJ_per_m":
+                          float(h["damage_dissipation"][-1]) * 1e3 if "damage_dissipation" in h
+                          else 0.0}), flush=True)
+    return runs
+
+
+def pictures(runs, img):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    colours = {"NONE": "k", "TALAMINI": "tab:red", "GIOVANARDI": "tab:blue"}
+    fig, ax = plt.subplots(figsize=(6.4, 3.6))
+    for model, r in runs.items():
+        if r["zones"]:
+            t = [x[0] * 1e9 for x in r["zones"]]
+            ax.plot(t, [x[2] * 1e6 for x in r["zones"]], colours[model],
+                    label=f"{model.lower()}: d ≥ 1/2")
+            ax.plot(t, [x[4] * 1e6 for x in r["zones"]], colours[model], ls="--",
+                    label=f"{model.lower()}: opened, J > 1.1")
+    ax.set_xlabel("t (ns)")
+    ax.set_ylabel("radius of the centre's zone (µm)")
+    ax.set_title("The centre's damaged zone (default disk, 66k triangles)")
+    ax.legend()
+    fig.tight_layout()
+    fig.savefig(os.path.join(img, "damage_zone.png"), dpi=120)
+    fig, ax = plt.subplots(figsize=(6.4, 3.6))
+    for model, r in runs.items():
+        h = r["history"]
+        ax.plot(h["time"] * 1e9, h["abar_filtered"], colours[model], label=model.lower())
+    ax.set_xlabel("t (ns)")
+    ax.set_ylabel("Ā filtered")
+    ax.set_title("Rim roughness with and without damage")
+    ax.legend()
+    fig.tight_layout()
+    fig.savefig(os.path.join(img, "damage_abar.png"), dpi=120)
+
+
+def table(rows):
+    keys = list(rows[0].keys())
+    print("| " + " | ".join(keys) + " |")
+    print("|" + "---|" * len(keys))
+    for r in rows:
+        print("| " + " | ".join(f"{v:.4g}" if isinstance(v, float) else str(v)
+                                for v in r.values()) + " |")
+
+
+def main():
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--solver", default="build/solver/softshock-solve")
+    p.add_argument("--out", default="damage-study")
+    p.add_argument("--threads", type=int, default=2)
+    p.add_argument("--sizes", default="16500,66000,150000,264000")
+    p.add_argument("--short-end", type=float, default=60e-9)
+    p.add_argument("--eval-time", type=float, default=56e-9)
+    p.add_argument("--long-mesh", type=int, default=66000)
+    p.add_argument("--long-end", type=float, default=400e-9)
+    p.add_argument("--img", default="docs/img")
+    p.add_argument("--skip-long", action="store_true")
+    a = p.parse_args()
+    a.sizes = [int(x) for x in a.sizes.split(",")]
+    figures = {"short": short_study(a)}
+    table(figures["short"])
+    if not a.skip_long:
+        runs = long_study(a)
+        pictures(runs, a.img)
+        figures["long"] = {m: {"zones": r["zones"], "summary": r["summary"]}
+                           for m, r in runs.items()}
+    with open(os.path.join(a.out, "figures.json"), "w") as f:
+        json.dump(figures, f, indent=1)
+
+
+if __name__ == "__main__":
+    main()
