@@ -22,36 +22,14 @@ Prints markdown tables and writes --out/figures.json.
 import argparse
 import json
 import os
-import subprocess
-import time
 
 import h5py
 import numpy as np
 
+from study_runs import run
+
 RIM_RING_M = 80e-6  # the outer ring where the release's overshoot sits (r > 80 um)
 CENTRE_M = 60e-6  # the centre's damaged zone: damaged nodes within 60 um of the centre
-
-
-def run(solver, spec, out, threads):
-    """Runs the spec in `out`, reusing a finished run of the same spec there."""
-    os.makedirs(out, exist_ok=True)
-    path, done = os.path.join(out, "spec.json"), os.path.join(out, "summary.json")
-    if os.path.exists(done) and os.path.exists(path):
-        with open(path) as f, open(done) as g:
-            if json.load(f) == spec:
-                return json.load(g)
-    with open(path, "w") as f:
-        json.dump(spec, f)
-    started = time.monotonic()
-    p = subprocess.run([solver, "--spec", path, "--out", out, "--quiet", "--threads", str(threads)],
-                       capture_output=True, text=True)
-    if p.returncode not in (0, 1) or not p.stdout.strip():
-        raise SystemExit(f"{out}: softshock-solve failed ({p.returncode}): {p.stderr[-2000:]}")
-    summary = json.loads(p.stdout.strip().splitlines()[-1])
-    summary["seconds"] = time.monotonic() - started
-    with open(done, "w") as f:
-        json.dump(summary, f)
-    return summary
 
 
 def spec(elements, end, model, output_interval):

@@ -120,11 +120,16 @@ namespace {
 // across an element over the sound speed) stays below ~0.5, adds q ~ c (c2 + c1 z); at rest only
 // the physical viscosity 4/3 eta J / (rho0 h) acts. dt = cfl h / (q + sqrt(q^2 + c^2)) times the
 // mass blend's factor (continuum::stable_step_sq_kinematic, with the kinematic viscosity q h).
+// J^-n of the Tait state at pressure p >= 0: p = (kappa / n)(J^-n - 1).
+double tait_j_pow_minus_n(const v1::Material& m, double pressure) {
+  return 1.0 + (m.tait_gamma() + 1.0) * std::max(0.0, pressure) / m.bulk_modulus();
+}
+
 double stable_dt(const v1::RunSpec& spec, double altitude0, double mass_factor, double pressure,
                  bool shocked) {
   const auto& m = spec.material();
   const double kappa = m.bulk_modulus(), n = m.tait_gamma() + 1.0;
-  const double j_minus_n = 1.0 + n * std::max(0.0, pressure) / kappa;
+  const double j_minus_n = tait_j_pow_minus_n(m, pressure);
   const double j = std::pow(j_minus_n, -1.0 / n);
   const double bulk = continuum::tait_bulk_modulus(kappa, j_minus_n);
   const double c_sq = continuum::longitudinal_speed_sq(bulk, m.shear_modulus(), m.density(), j);
@@ -140,11 +145,10 @@ double stable_dt(const v1::RunSpec& spec, double altitude0, double mass_factor, 
 // Tait state behind it); the longitudinal sound speed for a load too weak to compress.
 double shock_speed(const v1::RunSpec& spec) {
   const auto& m = spec.material();
-  const double kappa = m.bulk_modulus(), n = m.tait_gamma() + 1.0;
   const double p = std::max(0.0, spec.load().pressure());
-  const double j = std::pow(1.0 + n * p / kappa, -1.0 / n);
-  const double c0 =
-      std::sqrt(continuum::longitudinal_speed_sq(kappa, m.shear_modulus(), m.density(), 1.0));
+  const double j = std::pow(tait_j_pow_minus_n(m, p), -1.0 / (m.tait_gamma() + 1.0));
+  const double c0 = std::sqrt(
+      continuum::longitudinal_speed_sq(m.bulk_modulus(), m.shear_modulus(), m.density(), 1.0));
   return 1.0 - j > 1e-9 ? std::max(c0, std::sqrt(p / (m.density() * (1.0 - j)))) : c0;
 }
 
