@@ -10,6 +10,7 @@
 #include "solver/continuum.hpp"
 #include "solver/damage/damage_solver.hpp"
 #include "solver/integrator.hpp"
+#include "solver/tet4_passes.hpp"
 
 namespace softshock {
 
@@ -224,8 +225,9 @@ MeshAltitudes mesh_altitudes(const Mesh& mesh) {
 
 StepEstimate estimate_steps(const v1::RunSpec& spec, const MeshAltitudes& altitudes, int dim,
                             double crossing_length) {
-  const double mass_factor = dim == 2 ? mass_blend_step_factor(spec.element().mass_blend())
-                                      : 1.0 / std::sqrt(1.0 + 0.8 * spec.element().mass_blend());
+  const double alpha = spec.element().mass_blend();
+  const double mass_factor =
+      dim == 2 ? mass_blend_step_factor(alpha) : tet4_mass_blend_step_factor(alpha);
   const StepFactors factors = dim == 2 ? kStepFactors2d : kStepFactors3d;
   StepEstimate e;
   e.dt_rest_s = stable_dt(spec, altitudes.smallest_m, mass_factor, 0.0, false);
