@@ -19,13 +19,6 @@ double refine_extremum(const std::vector<double>& t, const std::vector<double>& 
   return t[k] + std::clamp(shift, -0.5, 0.5) * h;
 }
 
-std::string number(double v) {
-  if (!std::isfinite(v)) return "null";
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.10g", v);
-  return buf;
-}
-
 }  // namespace
 
 NondimensionalGroups nondimensional_groups(const Material& material,
@@ -45,29 +38,6 @@ NondimensionalGroups nondimensional_groups(const Material& material,
 
 NondimensionalGroups nondimensional_groups(const Problem& p) {
   return nondimensional_groups(p.material, p.viscosity, p.load, polar_frame(p).reference_radius_m);
-}
-
-double RunSummary::grind_ns() const {
-  const double element_steps = static_cast<double>(steps) * static_cast<double>(elements);
-  return element_steps > 0 ? wall_time_s / element_steps * 1e9 : std::nan("");
-}
-
-double RunSummary::kernel_grind_ns() const {
-  const double element_steps = static_cast<double>(steps) * static_cast<double>(elements);
-  return element_steps > 0 ? kernel_time_s / element_steps * 1e9 : std::nan("");
-}
-
-double RunSummary::meshing_share() const {
-  const double total = meshing_time_s + wall_time_s;
-  return total > 0 ? meshing_time_s / total : std::nan("");
-}
-
-double RunSummary::diagnostics_share() const {
-  return wall_time_s > 0 ? diagnostics_time_s / wall_time_s : std::nan("");
-}
-
-double RunSummary::output_share() const {
-  return wall_time_s > 0 ? output_time_s / wall_time_s : std::nan("");
 }
 
 RunSummary summarize(const Problem& problem, const RunResult& r) {
@@ -167,90 +137,6 @@ RunSummary summarize(const Problem& problem, const RunResult& r) {
       s.rim_reflections_s.push_back(refine_extremum(h.time, a, k));
   }
   return s;
-}
-
-const std::vector<std::pair<std::string, std::string>>& renamed_summary_names() {
-  static const std::vector<std::pair<std::string, std::string>> names = {
-      {"wall_time", "wall_time_s"},
-      {"end_time", "end_time_s"},
-      {"time_scale", "time_scale_s"},
-      {"energy_injected", "energy_injected_J_per_m"},
-      {"energy_after_pulse", "energy_after_pulse_J_per_m"},
-      {"shock_at_center", "shock_at_center_s"},
-      {"rim_reflections", "rim_reflections_s"},
-      {"min_dt", "min_dt_s"},
-      {"max_dt", "max_dt_s"},
-      {"kernel_time", "kernel_time_s"},
-      {"grind_time", "grind_ns"},
-      {"kernel_grind_time", "kernel_grind_ns"},
-      {"meshing_time", "meshing_time_s"},
-      {"aspect_ratio_above_10", "aspect_ratio_above_10_s"},
-      {"diagnostics_time", "diagnostics_time_s"},
-      {"output_time", "output_time_s"},
-  };
-  return names;
-}
-
-std::string current_summary_name(const std::string& name) {
-  for (const auto& [old_name, name_now] : renamed_summary_names()) {
-    if (name == old_name) return name_now;
-  }
-  return name;
-}
-
-std::string summary_to_json(const RunSummary& s) {
-  std::ostringstream o;
-  o << "{\"status\":\"" << s.status << "\"";
-  if (!s.error.empty()) {
-    std::string e;
-    for (char c : s.error) {
-      if (c == '"' || c == '\\') e += '\\';
-      if (static_cast<unsigned char>(c) >= 0x20) e += c;
-    }
-    o << ",\"error\":\"" << e << "\"";
-  }
-  if (!s.failure.empty()) o << ",\"failure\":\"" << s.failure << "\"";
-  o << ",\"solver_revision\":" << s.solver_revision;
-  if (s.dimension == 3) o << ",\"dimension\":3,\"thickness_m\":" << number(s.thickness_m);
-  o << ",\"elements\":" << s.elements << ",\"nodes\":" << s.nodes << ",\"steps\":" << s.steps
-    << ",\"wall_time_s\":" << number(s.wall_time_s) << ",\"end_time_s\":" << number(s.end_time_s)
-    << ",\"groups\":{\"pbar\":" << number(s.groups.pbar)
-    << ",\"tbar_pulse\":" << number(s.groups.tbar_pulse) << ",\"mubar\":" << number(s.groups.mubar)
-    << ",\"gamma\":" << number(s.groups.gamma) << ",\"c1\":" << number(s.groups.c1)
-    << ",\"c2\":" << number(s.groups.c2) << ",\"time_scale_s\":" << number(s.groups.time_scale_s)
-    << "},\"energy_injected_J_per_m\":" << number(s.energy_injected_J_per_m)
-    << ",\"energy_after_pulse_J_per_m\":" << number(s.energy_after_pulse_J_per_m)
-    << ",\"max_abar_first_cycle\":" << number(s.max_abar_first_cycle)
-    << ",\"max_abar\":" << number(s.max_abar) << ",\"abar_end\":" << number(s.abar_end)
-    << ",\"max_abar_filtered_first_cycle\":" << number(s.max_abar_filtered_first_cycle)
-    << ",\"max_abar_filtered\":" << number(s.max_abar_filtered)
-    << ",\"abar_filtered_end\":" << number(s.abar_filtered_end)
-    << ",\"max_aspect_ratio\":" << number(s.max_aspect_ratio)
-    << ",\"aspect_ratio_above_10_s\":" << number(s.aspect_ratio_above_10_s)
-    << ",\"dominant_mode_end\":" << s.dominant_mode_end
-    << ",\"shock_at_center_s\":" << number(s.shock_at_center_s) << ",\"rim_reflections_s\":[";
-  for (std::size_t k = 0; k < s.rim_reflections_s.size(); ++k)
-    o << (k ? "," : "") << number(s.rim_reflections_s[k]);
-  o << "],\"min_dt_s\":" << number(s.min_dt_s) << ",\"max_dt_s\":" << number(s.max_dt_s)
-    << ",\"kernel_time_s\":" << number(s.kernel_time_s) << ",\"grind_ns\":" << number(s.grind_ns())
-    << ",\"kernel_grind_ns\":" << number(s.kernel_grind_ns())
-    << ",\"diagnostics_time_s\":" << number(s.diagnostics_time_s)
-    << ",\"diagnostics_share\":" << number(s.diagnostics_share())
-    << ",\"output_time_s\":" << number(s.output_time_s)
-    << ",\"output_share\":" << number(s.output_share())
-    << ",\"meshing_time_s\":" << number(s.meshing_time_s)
-    << ",\"meshing_share\":" << number(s.meshing_share()) << ",\"mesh_cache\":\"" << s.mesh_cache
-    << "\"";
-  if (s.damage)
-    o << ",\"damage_onset_s\":" << number(s.damage_onset_s)
-      << ",\"max_damaged_volume\":" << number(s.max_damaged_volume)
-      << ",\"max_damaged_radius_m\":" << number(s.max_damaged_radius_m)
-      << ",\"damage_dissipation_J_per_m\":" << number(s.damage_dissipation_J_per_m)
-      << ",\"crack_energy_J_per_m\":" << number(s.crack_energy_J_per_m)
-      << ",\"damage_time_s\":" << number(s.damage_time_s)
-      << ",\"damage_solves\":" << s.damage_solves;
-  o << "}";
-  return o.str();
 }
 
 }  // namespace softshock

@@ -98,6 +98,7 @@ struct RunSummary {
 };
 
 RunSummary summarize(const Problem& problem, const RunResult& result);
+// The figures the run has, from the table of summary_figures.hpp (and defined there).
 std::string summary_to_json(const RunSummary& summary);
 
 // The summary's names carry their units (summary_to_json's keys, JobSummary's fields since they

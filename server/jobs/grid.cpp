@@ -301,26 +301,16 @@ GridPlan expand_grid(const v1::RunSpec& base, const pb::RepeatedPtrField<v1::Gri
 }
 
 const std::vector<GridQuantity>& grid_quantities() {
-  static const std::vector<GridQuantity> quantities = {
-      {"max_abar_first_cycle", "1", false},
-      {"max_abar", "1", false},
-      {"abar_end", "1", false},
-      {"max_abar_filtered_first_cycle", "1", false},
-      {"max_abar_filtered", "1", false},
-      {"abar_filtered_end", "1", false},
-      {"max_aspect_ratio", "1", false},
-      {"abar_at", "1", true},
-      {"dominant_mode_end", "1", false},
-      {"energy_injected_J_per_m", "J/m", false},
-      {"energy_after_pulse_J_per_m", "J/m", false},
-      {"shock_at_center_s", "s", false},
-      {"wall_time_s", "s", false},
-      // Phase-field damage (NaN for a run without it, and the onset of one never damaged).
-      {"damage_onset_s", "s", false},
-      {"max_damaged_radius_m", "m", false},
-      {"max_damaged_volume", "m^2 (2-D) or m^3 (3-D)", false},
-      {"damage_dissipation_J_per_m", "J/m", false},
-  };
+  static const std::vector<GridQuantity> quantities = [] {
+    // The default first, then summary_figures()' other grid quantities and A-bar at a t-bar.
+    const SummaryFigure* first = find_summary_figure("max_abar_first_cycle");
+    std::vector<GridQuantity> out = {{first->name, first->unit, false, first}};
+    for (const auto& f : summary_figures()) {
+      if (f.has(kGridQuantity) && &f != first) out.push_back({f.name, f.unit, false, &f});
+    }
+    out.push_back({"abar_at", "1", true, nullptr});
+    return out;
+  }();
   return quantities;
 }
 
@@ -334,23 +324,8 @@ const GridQuantity* find_grid_quantity(const std::string& name) {
 
 double grid_quantity(const GridQuantity& quantity, const StoredSummary& stored, double tbar) {
   const RunSummary& s = stored.summary;
-  const std::string name = quantity.name;
-  if (name == "max_abar_first_cycle") return s.max_abar_first_cycle;
-  if (name == "max_abar") return s.max_abar;
-  if (name == "abar_end") return s.abar_end;
-  if (name == "max_abar_filtered_first_cycle") return s.max_abar_filtered_first_cycle;
-  if (name == "max_abar_filtered") return s.max_abar_filtered;
-  if (name == "abar_filtered_end") return s.abar_filtered_end;
-  if (name == "max_aspect_ratio") return s.max_aspect_ratio;
-  if (name == "dominant_mode_end") return s.dominant_mode_end;
-  if (name == "energy_injected_J_per_m") return s.energy_injected_J_per_m;
-  if (name == "energy_after_pulse_J_per_m") return s.energy_after_pulse_J_per_m;
-  if (name == "shock_at_center_s") return s.shock_at_center_s < 0 ? NAN : s.shock_at_center_s;
-  if (name == "wall_time_s") return s.wall_time_s;
-  if (name == "damage_onset_s") return s.damage && s.damage_onset_s >= 0 ? s.damage_onset_s : NAN;
-  if (name == "max_damaged_radius_m") return s.damage ? s.max_damaged_radius_m : NAN;
-  if (name == "max_damaged_volume") return s.damage ? s.max_damaged_volume : NAN;
-  if (name == "damage_dissipation_J_per_m") return s.damage ? s.damage_dissipation_J_per_m : NAN;
+  // A figure: NaN where the run has none (no damage, a shock never detected).
+  if (quantity.figure) return figure_value(*quantity.figure, s);
   // abar_at
   const auto& t = stored.abar_times;
   const auto& a = stored.abar_values;

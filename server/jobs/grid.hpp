@@ -10,6 +10,7 @@
 #include "server/store/catalogue.hpp"
 #include "softshock/v1/service.pb.h"
 #include "solver/run_spec.hpp"
+#include "solver/summary_figures.hpp"
 
 namespace softshock::server {
 
@@ -62,6 +63,7 @@ struct GridQuantity {
   const char* name;
   const char* units;
   bool needs_tbar;
+  const SummaryFigure* figure;  // the summary figure it reads; nullptr for abar_at
 };
 const std::vector<GridQuantity>& grid_quantities();
 // By name; a summary figure's older name (energy_injected, ...) finds today's quantity.

@@ -24,6 +24,7 @@
 #include "solver/io/result_file.hpp"
 #include "solver/run_summary.hpp"
 #include "solver/simulation.hpp"
+#include "solver/summary_figures.hpp"
 
 namespace softshock::server {
 
@@ -54,20 +55,8 @@ JobProgressRecord to_record(const Progress& p) {
 }
 
 // A number of the summary JSON; null (written for non-finite values) reads back as NaN.
-double json_number(const google::protobuf::Struct& s, const std::string& key) {
-  const auto it = s.fields().find(key);
-  if (it == s.fields().end() || !it->second.has_number_value()) return NAN;
-  return it->second.number_value();
-}
-
-// A count of the summary JSON: converting NaN, a negative or an out-of-range double to an
-// integer type is undefined behaviour, so anything but a finite value in 0..2^53 reads as 0.
-template <typename Int>
-Int json_count(const google::protobuf::Struct& s, const std::string& key) {
-  const double v = json_number(s, key);
-  constexpr double kExact = 9007199254740992.0;  // 2^53: every integer below is exact
-  const double hi = std::min(kExact, static_cast<double>(std::numeric_limits<Int>::max()));
-  return std::isfinite(v) && v >= 0 && v <= hi ? static_cast<Int>(v) : Int{0};
+double number_of(const google::protobuf::Value& v) {
+  return v.has_number_value() ? v.number_value() : NAN;
 }
 
 }  // namespace
@@ -81,75 +70,40 @@ RunSummary parse_summary_json(const std::string& json) {
   if (!google::protobuf::util::JsonStringToMessage(json, &s).ok()) {
     throw std::runtime_error("summary JSON does not parse");
   }
+  const auto& top = s.fields();
+  const auto groups = top.find("groups");
   RunSummary r;
-  const auto& f = s.fields();
-  auto text = [&](const char* key) {
-    const auto it = f.find(key);
-    return it == f.end() ? std::string() : it->second.string_value();
-  };
-  r.status = text("status");
-  r.error = text("error");
-  r.failure = text("failure");
-  r.elements = json_count<std::size_t>(s, "elements");
-  r.nodes = json_count<std::size_t>(s, "nodes");
-  r.steps = json_count<int64_t>(s, "steps");
   // Absent in results written before revisions were recorded: 0, never equal to a live one.
-  r.solver_revision =
-      f.find("solver_revision") != f.end() ? json_count<int>(s, "solver_revision") : 0;
-  r.wall_time_s = json_number(s, "wall_time_s");
-  r.end_time_s = json_number(s, "end_time_s");
-  if (const auto g = f.find("groups"); g != f.end()) {
-    const auto& gs = g->second.struct_value();
-    r.groups.pbar = json_number(gs, "pbar");
-    r.groups.tbar_pulse = json_number(gs, "tbar_pulse");
-    r.groups.mubar = json_number(gs, "mubar");
-    r.groups.gamma = json_number(gs, "gamma");
-    r.groups.c1 = json_number(gs, "c1");
-    r.groups.c2 = json_number(gs, "c2");
-    r.groups.time_scale_s = json_number(gs, "time_scale_s");
-  }
-  r.energy_injected_J_per_m = json_number(s, "energy_injected_J_per_m");
-  r.energy_after_pulse_J_per_m = json_number(s, "energy_after_pulse_J_per_m");
-  r.max_abar_first_cycle = json_number(s, "max_abar_first_cycle");
-  r.max_abar = json_number(s, "max_abar");
-  r.dominant_mode_end = json_count<int>(s, "dominant_mode_end");
-  r.shock_at_center_s = json_number(s, "shock_at_center_s");
-  if (const auto rr = f.find("rim_reflections_s"); rr != f.end()) {
-    for (const auto& v : rr->second.list_value().values()) {
-      r.rim_reflections_s.push_back(v.number_value());
+  r.solver_revision = 0;
+  // Damage figures are written only for a run with damage.
+  r.damage = top.find("damage_onset_s") != top.end();
+  for (const auto& figure : summary_figures()) {
+    if (figure.has(kDerived) || figure.has(kNotInJson)) continue;
+    if (figure.has(kOnlyDamage) && !r.damage) continue;
+    if (figure.has(kInGroups) && groups == top.end()) continue;
+    const auto& fields = figure.has(kInGroups) ? groups->second.struct_value().fields() : top;
+    const auto it = fields.find(figure.name);
+    // Absent: an optional figure (one added later, or written only for some runs) keeps
+    // RunSummary's default; a figure every summary has reads as not known (NaN, 0, empty).
+    if (it == fields.end() && (figure.has(kOptional) || figure.has(kOnly3D))) continue;
+    const google::protobuf::Value none;
+    const google::protobuf::Value& v = it == fields.end() ? none : it->second;
+    switch (figure.type) {
+      case FigureType::kText:
+        figure.text_ref(r) = v.string_value();
+        break;
+      case FigureType::kSeries: {
+        auto& out = figure.series_ref(r);
+        out.clear();
+        for (const auto& x : v.list_value().values()) out.push_back(number_of(x));
+        break;
+      }
+      case FigureType::kInteger:
+      case FigureType::kFlag:
+      case FigureType::kReal:
+        figure.set(r, number_of(v));  // integers: anything but 0..2^53 reads as 0
+        break;
     }
-  }
-  r.min_dt_s = json_number(s, "min_dt_s");
-  r.max_dt_s = json_number(s, "max_dt_s");
-  // Absent in results written before they were added: 0, not NaN.
-  auto optional = [&](const char* key, double& out) {
-    if (f.find(key) != f.end()) out = json_number(s, key);
-  };
-  optional("kernel_time_s", r.kernel_time_s);
-  optional("diagnostics_time_s", r.diagnostics_time_s);
-  optional("output_time_s", r.output_time_s);
-  optional("meshing_time_s", r.meshing_time_s);
-  if (f.find("mesh_cache") != f.end()) r.mesh_cache = text("mesh_cache");
-  optional("max_abar_filtered_first_cycle", r.max_abar_filtered_first_cycle);
-  optional("max_abar_filtered", r.max_abar_filtered);
-  optional("abar_end", r.abar_end);
-  optional("abar_filtered_end", r.abar_filtered_end);
-  optional("max_aspect_ratio", r.max_aspect_ratio);
-  optional("aspect_ratio_above_10_s", r.aspect_ratio_above_10_s);
-  // 3-D: printed only for a run with tetrahedra (2-D otherwise).
-  if (f.find("dimension") != f.end()) r.dimension = json_count<int>(s, "dimension");
-  optional("thickness_m", r.thickness_m);
-  // Phase-field damage: printed only for a run with it.
-  if (f.find("damage_onset_s") != f.end()) {
-    r.damage = true;
-    r.damage_onset_s = json_number(s, "damage_onset_s");
-    r.max_damaged_volume = json_number(s, "max_damaged_volume");
-    r.max_damaged_radius_m = json_number(s, "max_damaged_radius_m");
-    r.damage_dissipation_J_per_m = json_number(s, "damage_dissipation_J_per_m");
-    r.crack_energy_J_per_m = json_number(s, "crack_energy_J_per_m");
-    optional("damage_time_s", r.damage_time_s);
-    if (f.find("damage_solves") != f.end())
-      r.damage_solves = json_count<int64_t>(s, "damage_solves");
   }
   return r;
 }

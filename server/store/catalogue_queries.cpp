@@ -6,6 +6,7 @@
 #include "server/store/job_rows.hpp"
 #include "server/store/sqlite_connection.hpp"
 #include "server/store/summary_rows.hpp"
+#include "solver/summary_figures.hpp"
 
 namespace softshock::server {
 
@@ -28,26 +29,17 @@ std::optional<StoredSummary> Catalogue::summary(const std::string& id) const {
 
 namespace {
 
-// QueryJobs names -> SQL, from a fixed table: user text never reaches the SQL. The names are the
-// summary's (units in the name); the service maps the older ones (current_summary_name).
+// QueryJobs names -> SQL, from summary_figures()' queryable rows (a fixed table): user text never
+// reaches the SQL. The names are the summary's (units in the name); the service maps the older ones
+// (current_summary_name).
 const std::vector<std::pair<std::string, std::string>>& query_columns() {
-  static const std::vector<std::pair<std::string, std::string>> columns = {
-      {"pbar", "j.pbar"},
-      {"tbar_pulse", "j.tbar_pulse"},
-      {"mubar", "j.mubar"},
-      {"gamma", "j.gamma"},
-      {"c1", "j.c1"},
-      {"c2", "j.c2"},
-      {"max_abar_first_cycle", "j.max_abar_first_cycle"},
-      {"max_abar", "j.max_abar"},
-      {"energy_injected_J_per_m", "j.energy_injected"},
-      {"energy_after_pulse_J_per_m", "j.energy_after_pulse"},
-      {"dominant_mode_end", "j.dominant_mode_end"},
-      {"shock_at_center_s", "j.shock_at_center"},
-      {"wall_time_s", "j.wall_time"},
-      {"elements", "j.elements"},
-      {"steps", "j.steps"},
-  };
+  static const std::vector<std::pair<std::string, std::string>> columns = [] {
+    std::vector<std::pair<std::string, std::string>> out;
+    for (const auto& f : summary_figures()) {
+      if (f.has(kQueryable)) out.emplace_back(f.name, std::string("j.") + f.column);
+    }
+    return out;
+  }();
   return columns;
 }
 

@@ -1,6 +1,7 @@
-// Rows of the job_summaries table (server/store/ only). Its columns are defined once, as a
-// table of column name and accessor (summary_rows.cpp); the SELECT lists, the reads, the
-// INSERT and the copy of a reused run's row are all generated from it.
+// Rows of the job_summaries table (server/store/ only). Its columns are the catalogued figures
+// of solver/summary_figures.hpp's table, then the decimated series (a table in
+// summary_rows.cpp); the SELECT lists, the reads, the INSERT and the copy of a reused run's row
+// are all generated from them.
 #pragma once
 
 #include <string>

@@ -4,9 +4,12 @@
 
 #include <algorithm>
 #include <cstring>
+#include <stdexcept>
+#include <vector>
 
 #include "server/policy/users.hpp"
 #include "server/transport/rpc_guard.hpp"
+#include "solver/summary_figures.hpp"
 
 namespace softshock::server::rpc {
 
@@ -118,61 +121,75 @@ Status page_size_of(int32_t requested, int* page_size) {
   return Status::OK;
 }
 
-void fill_groups(const NondimensionalGroups& from, v1::NondimensionalGroups* g) {
-  g->set_pbar(from.pbar);
-  g->set_tbar_pulse(from.tbar_pulse);
-  g->set_mubar(from.mubar);
-  g->set_gamma(from.gamma);
-  g->set_c1(from.c1);
-  g->set_c2(from.c2);
-  g->set_time_scale_s(from.time_scale_s);
+namespace {
+
+// A summary figure and the field of the same name in JobSummary (or, for kInGroups figures, in
+// NondimensionalGroups): transport fills the message from summary_figures(), by name.
+struct FigureField {
+  const SummaryFigure* figure;
+  const google::protobuf::FieldDescriptor* field;
+};
+
+std::vector<FigureField> figure_fields(bool groups) {
+  const auto* message =
+      groups ? v1::NondimensionalGroups::descriptor() : v1::JobSummary::descriptor();
+  std::vector<FigureField> out;
+  for (const auto& f : summary_figures()) {
+    if (f.has(kNotInJobSummary) || f.has(kInGroups) != groups) continue;
+    const auto* field = message->FindFieldByName(f.name);
+    // tests/server/test_summary_figures.cpp holds the table and the message to each other.
+    if (!field) throw std::logic_error(std::string("JobSummary has no field ") + f.name);
+    out.push_back({&f, field});
+  }
+  return out;
 }
 
+void set_field(google::protobuf::Message* m, const FigureField& ff, const RunSummary& s) {
+  using google::protobuf::FieldDescriptor;
+  const auto* r = m->GetReflection();
+  const SummaryFigure& f = *ff.figure;
+  if (ff.field->is_repeated()) {
+    for (double v : f.series(s)) r->AddDouble(m, ff.field, v);
+    return;
+  }
+  switch (ff.field->cpp_type()) {
+    case FieldDescriptor::CPPTYPE_DOUBLE:
+      r->SetDouble(m, ff.field, f.get(s));
+      break;
+    case FieldDescriptor::CPPTYPE_INT64:
+      r->SetInt64(m, ff.field, static_cast<int64_t>(f.get(s)));
+      break;
+    case FieldDescriptor::CPPTYPE_INT32:
+      r->SetInt32(m, ff.field, static_cast<int32_t>(f.get(s)));
+      break;
+    case FieldDescriptor::CPPTYPE_BOOL:
+      r->SetBool(m, ff.field, f.get(s) != 0);
+      break;
+    case FieldDescriptor::CPPTYPE_STRING:
+      r->SetString(m, ff.field, f.text(s));
+      break;
+    default:
+      throw std::logic_error(std::string("JobSummary.") + f.name + ": unexpected type");
+  }
+}
+
+}  // namespace
+
+void fill_groups(const NondimensionalGroups& from, v1::NondimensionalGroups* g) {
+  static const std::vector<FigureField> fields = figure_fields(true);
+  RunSummary s;
+  s.groups = from;
+  for (const auto& ff : fields) set_field(g, ff, s);
+}
+
+// Every figure a JobSummary carries; the damage figures only for a run with damage.
 void fill_summary(const std::string& id, const RunSummary& s, v1::JobSummary* resp) {
+  static const std::vector<FigureField> fields = figure_fields(false);
   resp->set_id(id);
-  resp->set_elements(static_cast<int64_t>(s.elements));
-  resp->set_nodes(static_cast<int64_t>(s.nodes));
-  resp->set_steps(s.steps);
-  resp->set_wall_time_s(s.wall_time_s);
-  resp->set_end_time_s(s.end_time_s);
   fill_groups(s.groups, resp->mutable_groups());
-  resp->set_energy_injected_j_per_m(s.energy_injected_J_per_m);
-  resp->set_energy_after_pulse_j_per_m(s.energy_after_pulse_J_per_m);
-  resp->set_max_abar_first_cycle(s.max_abar_first_cycle);
-  resp->set_max_abar(s.max_abar);
-  resp->set_dominant_mode_end(s.dominant_mode_end);
-  resp->set_shock_at_center_s(s.shock_at_center_s);
-  for (double t : s.rim_reflections_s) resp->add_rim_reflections_s(t);
-  resp->set_min_dt_s(s.min_dt_s);
-  resp->set_max_dt_s(s.max_dt_s);
-  resp->set_kernel_time_s(s.kernel_time_s);
-  resp->set_grind_ns(s.grind_ns());
-  resp->set_kernel_grind_ns(s.kernel_grind_ns());
-  resp->set_meshing_time_s(s.meshing_time_s);
-  resp->set_meshing_share(s.meshing_share());
-  resp->set_mesh_cache(s.mesh_cache);
-  resp->set_abar_end(s.abar_end);
-  resp->set_max_abar_filtered_first_cycle(s.max_abar_filtered_first_cycle);
-  resp->set_max_abar_filtered(s.max_abar_filtered);
-  resp->set_abar_filtered_end(s.abar_filtered_end);
-  resp->set_max_aspect_ratio(s.max_aspect_ratio);
-  resp->set_aspect_ratio_above_10_s(s.aspect_ratio_above_10_s);
-  resp->set_solver_revision(s.solver_revision);
-  resp->set_diagnostics_time_s(s.diagnostics_time_s);
-  resp->set_diagnostics_share(s.diagnostics_share());
-  resp->set_output_time_s(s.output_time_s);
-  resp->set_output_share(s.output_share());
-  resp->set_dimension(s.dimension);
-  resp->set_thickness_m(s.thickness_m);
-  if (s.damage) {
-    resp->set_damage(true);
-    resp->set_damage_onset_s(s.damage_onset_s);
-    resp->set_max_damaged_volume(s.max_damaged_volume);
-    resp->set_max_damaged_radius_m(s.max_damaged_radius_m);
-    resp->set_damage_dissipation_j_per_m(s.damage_dissipation_J_per_m);
-    resp->set_crack_energy_j_per_m(s.crack_energy_J_per_m);
-    resp->set_damage_time_s(s.damage_time_s);
-    resp->set_damage_solves(s.damage_solves);
+  for (const auto& ff : fields) {
+    if (ff.figure->has(kOnlyDamage) && !s.damage) continue;
+    set_field(resp, ff, s);
   }
 }
 
