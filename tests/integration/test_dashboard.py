@@ -109,9 +109,10 @@ class DashboardTest(DaemonTestCase):
         self.until(lambda: self.driver.find_element(By.ID, "jobs-count").text.startswith("0 job"),
                    what="the empty table")
 
-        # A long job takes the one worker; a small one waits behind it.
+        # A long job takes the one worker; a small one waits behind it. 2 us: the default 600 ns
+        # ran in 1.4 s on a fast machine, under two of the page's 1 s polls.
         c = self.client(token=TOKEN)
-        first = c.submit(long_spec(), labels={"study": "long"})
+        first = c.submit(long_spec(end_time=2e-6), labels={"study": "long"})
         small = c.submit(small_spec(elements=400, end_time=4e-8), labels={"study": "small"})
         seen = []  # the small job's states as its row showed them, in order
         fractions = set()  # the running job's progress as its row's bar showed it
@@ -253,6 +254,10 @@ class DashboardTest(DaemonTestCase):
                    what="the grid in the list")[0].click()
         self.until(lambda: self.driver.find_element(By.ID, "grid-state").get_attribute(
             "data-state") == "SUCCEEDED", what="the grid's state")
+        # The quantities are the daemon's grid figures (api/figures), damage ones included.
+        self.until(lambda: self.driver.find_elements(
+            By.CSS_SELECTOR, '#grid-quantity option[value="damage_onset_s"]'),
+            what="the quantities from api/figures")
         Select(self.driver.find_element(By.ID, "grid-quantity")).select_by_value("max_abar")
         cells = self.until(lambda: self.driver.find_elements(
             By.CSS_SELECTOR, "#grid-map rect.cell"), what="the grid map")
