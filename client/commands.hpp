@@ -35,6 +35,7 @@ int cmd_delete(const GlobalOptions& g, const ParsedArgs& a);
 int cmd_summary(const GlobalOptions& g, const ParsedArgs& a);
 int cmd_health(const GlobalOptions& g, const ParsedArgs& a);
 int cmd_whoami(const GlobalOptions& g, const ParsedArgs& a);
+int cmd_figures(const GlobalOptions& g, const ParsedArgs& a);
 // The owner a list command filters on: --owner USER, --mine (the caller, asked of the daemon),
 // or "" (everyone's).
 std::string owner_filter(Connection& conn, const ParsedArgs& a);

@@ -385,6 +385,31 @@ int cmd_whoami(const GlobalOptions& g, const ParsedArgs&) {
   return kExitOk;
 }
 
+int cmd_figures(const GlobalOptions& g, const ParsedArgs& a) {
+  Connection conn(g);
+  v1::SummaryFigures figures;
+  conn.unary([&](grpc::ClientContext& ctx) {
+    return conn.service().ListSummaryFigures(&ctx, v1::ListSummaryFiguresRequest(), &figures);
+  });
+  const bool query = a.has("query"), grid = a.has("grid");
+  if (g.json) {
+    std::printf("%s\n", to_json(figures).c_str());
+    return kExitOk;
+  }
+  std::vector<std::vector<std::string>> rows;
+  for (const auto& f : figures.figures()) {
+    if ((query && !f.queryable()) || (grid && !f.grid_quantity())) continue;
+    std::string where = f.queryable() ? "query" : "";
+    if (f.grid_quantity()) where += where.empty() ? "grid" : ", grid";
+    std::string when = f.only_3d() ? "3-D" : f.only_damage() ? "damage" : "";
+    rows.push_back({(f.in_groups() ? "groups." : "") + f.name(), f.unit().empty() ? "-" : f.unit(),
+                    where.empty() ? "-" : where, when.empty() ? "-" : when, f.meaning()});
+  }
+  print_table(stdout, {"NAME", "UNIT", "NAMED IN", "ONLY", "MEANING"}, rows);
+  if (grid) std::printf("(grid reduce also takes abar_at with --tbar T: A-bar at that t-bar)\n");
+  return kExitOk;
+}
+
 int cmd_health(const GlobalOptions& g, const ParsedArgs& a) {
   Connection conn(g);
   grpc::health::v1::HealthCheckRequest request;

@@ -149,13 +149,8 @@ const std::vector<Command>& commands() {
        "                 | status ID | wait ID | list [--owner USER | --mine] | cancel ID\n"
        "                 | reduce ID [--quantity Q] [--tbar T] [--csv] [--png FILE]",
        "parameter grids: submit (a base spec x 1-3 axes), follow, cancel, reduce to a table,\n"
-       "           CSV or heat map (quantities: max_abar_first_cycle, max_abar, abar_end,\n"
-       "           max_abar_filtered[_first_cycle], abar_filtered_end, max_aspect_ratio, abar_at "
-       "--tbar T,\n"
-       "           dominant_mode_end, energy_injected_J_per_m, energy_after_pulse_J_per_m,\n"
-       "           shock_at_center_s, wall_time_s; with damage: damage_onset_s, "
-       "max_damaged_radius_m,\n"
-       "           max_damaged_volume, damage_dissipation_J_per_m; the older energy_injected, ...\n"
+       "           CSV or heat map (quantities: 'softshock figures --grid', default\n"
+       "           max_abar_first_cycle, and abar_at --tbar T; the older energy_injected, ...\n"
        "           still work)",
        {{"wait", false},
         {"label", true},
@@ -184,11 +179,8 @@ const std::vector<Command>& commands() {
        "[--where 'NAME OP VALUE']... [--state S] [--grid ID] [--owner USER | --mine]\n"
        "                 [--order-by 'NAME [desc]'] [--limit N] [--csv]",
        "catalogued jobs whose groups / summary figures pass filters, e.g. --where 'pbar=0.5..1.5'\n"
-       "           --where 'gamma>6' --where 'max_abar_first_cycle>0.01' (names: pbar, "
-       "tbar_pulse,\n"
-       "           mubar, gamma, c1, c2, max_abar_first_cycle, max_abar, energy_injected_J_per_m,\n"
-       "           energy_after_pulse_J_per_m, dominant_mode_end, shock_at_center_s, wall_time_s,\n"
-       "           elements, steps)",
+       "           --where 'gamma>6' --where 'max_abar_first_cycle>0.01' (names: 'softshock\n"
+       "           figures --query')",
        {{"where", true},
         {"state", true},
         {"grid", true},
@@ -201,6 +193,14 @@ const std::vector<Command>& commands() {
        0,
        cmd_query},
       {"whoami", "", "the user and role your token names on the daemon", {}, 0, 0, cmd_whoami},
+      {"figures",
+       "[--query | --grid]",
+       "the summary figures the daemon reports: unit, meaning, and which query --where and\n"
+       "           grid reduce --quantity take (--query, --grid: only those)",
+       {{"query", false}, {"grid", false}},
+       0,
+       0,
+       cmd_figures},
       {"health",
        "[--service NAME]",
        "grpc.health.v1 check (exit 0 when SERVING)",

@@ -1,6 +1,5 @@
 #include "summary_figures.hpp"
 
-#include <array>
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -83,7 +82,9 @@ SummaryFigure text(const Row& r) {
 template <auto... Path>
 SummaryFigure series(const Row& r) {
   SummaryFigure f = make(r, FigureType::kSeries);
-  f.series = [](const RunSummary& s) -> const std::vector<double>& { return member_at<Path...>(s); };
+  f.series = [](const RunSummary& s) -> const std::vector<double>& {
+    return member_at<Path...>(s);
+  };
   f.series_ref = [](RunSummary& s) -> std::vector<double>& { return member_at<Path...>(s); };
   return f;
 }
@@ -102,10 +103,10 @@ constexpr unsigned kQG = kQueryable | kGridQuantity;
 
 const std::vector<SummaryFigure>& table() {
   static const std::vector<SummaryFigure> figures = {
-      text<&RS::status>({"status", nullptr, "status", "", "completed, cancelled or failed",
-                         kNotInJobSummary}),
-      text<&RS::error>({"error", nullptr, "error", "", "why the run failed",
-                        kOnlyNonEmpty | kNotInJobSummary}),
+      text<&RS::status>(
+          {"status", nullptr, "status", "", "completed, cancelled or failed", kNotInJobSummary}),
+      text<&RS::error>(
+          {"error", nullptr, "error", "", "why the run failed", kOnlyNonEmpty | kNotInJobSummary}),
       text<&RS::failure>({"failure", nullptr, nullptr, "",
                           "a failed run's cause (MESH_DISTORTION, ...); the job's error reports it",
                           kOnlyNonEmpty | kNotInJobSummary}),
@@ -124,8 +125,8 @@ const std::vector<SummaryFigure>& table() {
       real<&RS::wall_time_s>(
           {"wall_time_s", "wall_time", "wall_time", "s", "the run's wall time", kQG}),
       real<&RS::end_time_s>({"end_time_s", "end_time", "end_time", "s", "simulated time", 0}),
-      real<&RS::groups, &G::pbar>({"pbar", nullptr, "pbar", "1", "P-bar = P / kappa",
-                                   kInGroups | kQueryable}),
+      real<&RS::groups, &G::pbar>(
+          {"pbar", nullptr, "pbar", "1", "P-bar = P / kappa", kInGroups | kQueryable}),
       real<&RS::groups, &G::tbar_pulse>({"tbar_pulse", nullptr, "tbar_pulse", "1",
                                          "the pulse's duration over the time scale",
                                          kInGroups | kQueryable}),
@@ -137,20 +138,20 @@ const std::vector<SummaryFigure>& table() {
           {"c1", nullptr, "c1", "1", "linear viscosity coefficient", kInGroups | kQueryable}),
       real<&RS::groups, &G::c2>(
           {"c2", nullptr, "c2", "1", "quadratic viscosity coefficient", kInGroups | kQueryable}),
-      real<&RS::groups, &G::time_scale_s>({"time_scale_s", "time_scale", "time_scale", "s",
-                                           "R0 / sqrt(kappa / rho0)", kInGroups}),
+      real<&RS::groups, &G::time_scale_s>(
+          {"time_scale_s", "time_scale", "time_scale", "s", "R0 / sqrt(kappa / rho0)", kInGroups}),
       real<&RS::energy_injected_J_per_m>({"energy_injected_J_per_m", "energy_injected",
                                           "energy_injected", "J/m",
                                           "external work at the end of the run", kQG}),
       real<&RS::energy_after_pulse_J_per_m>({"energy_after_pulse_J_per_m", "energy_after_pulse",
                                              "energy_after_pulse", "J/m",
                                              "kinetic + elastic when the pulse has ended", kQG}),
-      real<&RS::max_abar_first_cycle>({"max_abar_first_cycle", nullptr, "max_abar_first_cycle",
-                                       "1", "max A-bar over 0 <= t-bar <= 4", kQG}),
+      real<&RS::max_abar_first_cycle>({"max_abar_first_cycle", nullptr, "max_abar_first_cycle", "1",
+                                       "max A-bar over 0 <= t-bar <= 4", kQG}),
       real<&RS::max_abar>(
           {"max_abar", nullptr, "max_abar", "1", "max A-bar over the whole run", kQG}),
-      real<&RS::abar_end>({"abar_end", nullptr, "abar_end", "1", "A-bar at the end",
-                           kOptional | kGridQuantity}),
+      real<&RS::abar_end>(
+          {"abar_end", nullptr, "abar_end", "1", "A-bar at the end", kOptional | kGridQuantity}),
       real<&RS::max_abar_filtered_first_cycle>(
           {"max_abar_filtered_first_cycle", nullptr, "max_abar_filtered_first_cycle", "1",
            "max filtered A-bar (modes 0..32) over 0 <= t-bar <= 4", kOptional | kGridQuantity}),
@@ -167,12 +168,11 @@ const std::vector<SummaryFigure>& table() {
            kOptional | kNegativeIsNone}),
       integer<&RS::dominant_mode_end>({"dominant_mode_end", nullptr, "dominant_mode_end", "1",
                                        "largest-amplitude rim mode >= 2 at the end", kQG}),
-      real<&RS::shock_at_center_s>({"shock_at_center_s", "shock_at_center", "shock_at_center",
-                                    "s", "the shock's arrival at the centre (negative: none)",
+      real<&RS::shock_at_center_s>({"shock_at_center_s", "shock_at_center", "shock_at_center", "s",
+                                    "the shock's arrival at the centre (negative: none)",
                                     kQG | kNegativeIsNone}),
       series<&RS::rim_reflections_s>({"rim_reflections_s", "rim_reflections", "rim_reflections",
-                                      "s", "peaks of the rim's outward acceleration",
-                                      kOptional}),
+                                      "s", "peaks of the rim's outward acceleration", kOptional}),
       real<&RS::min_dt_s>({"min_dt_s", "min_dt", "min_dt", "s", "smallest time step", 0}),
       real<&RS::max_dt_s>({"max_dt_s", "max_dt", "max_dt", "s", "largest time step", 0}),
       real<&RS::kernel_time_s>({"kernel_time_s", "kernel_time", "kernel_time", "s",
@@ -181,9 +181,8 @@ const std::vector<SummaryFigure>& table() {
           {"grind_ns", "grind_time", nullptr, "ns", "ns per element-step of the run", kDerived}),
       derived<&RS::kernel_grind_ns>({"kernel_grind_ns", "kernel_grind_time", nullptr, "ns",
                                      "ns per element-step of the element passes", kDerived}),
-      real<&RS::diagnostics_time_s>({"diagnostics_time_s", "diagnostics_time",
-                                     "diagnostics_time", "s",
-                                     "the solver thread's time in history samples and fields",
+      real<&RS::diagnostics_time_s>({"diagnostics_time_s", "diagnostics_time", "diagnostics_time",
+                                     "s", "the solver thread's time in history samples and fields",
                                      kOptional}),
       derived<&RS::diagnostics_share>({"diagnostics_share", nullptr, nullptr, "1",
                                        "diagnostics_time_s / wall_time_s", kDerived}),
@@ -196,19 +195,18 @@ const std::vector<SummaryFigure>& table() {
                                  "meshing or the mesh cache's look-up", kOptional}),
       derived<&RS::meshing_share>({"meshing_share", nullptr, nullptr, "1",
                                    "meshing_time_s / (meshing_time_s + wall_time_s)", kDerived}),
-      text<&RS::mesh_cache>({"mesh_cache", nullptr, "mesh_cache", "",
-                             "hit, miss, replaced or not-used", kOptional}),
-      flag<&RS::damage>({"damage", nullptr, "damage", "1",
-                         "whether the run has phase-field damage", kNotInJson}),
+      text<&RS::mesh_cache>(
+          {"mesh_cache", nullptr, "mesh_cache", "", "hit, miss, replaced or not-used", kOptional}),
+      flag<&RS::damage>(
+          {"damage", nullptr, "damage", "1", "whether the run has phase-field damage", kNotInJson}),
       real<&RS::damage_onset_s>({"damage_onset_s", nullptr, "damage_onset", "s",
                                  "when the damaged zone (d >= 1/2) appears (negative: never)",
                                  kOnlyDamage | kGridQuantity | kNegativeIsNone}),
-      real<&RS::max_damaged_volume>({"max_damaged_volume", nullptr, "max_damaged_volume",
-                                     "m^2 (2-D) or m^3 (3-D)",
-                                     "largest measure of the damaged zone",
-                                     kOnlyDamage | kGridQuantity}),
-      real<&RS::max_damaged_radius_m>({"max_damaged_radius_m", nullptr, "max_damaged_radius",
-                                       "m", "radius of a disk of the damaged zone's area",
+      real<&RS::max_damaged_volume>(
+          {"max_damaged_volume", nullptr, "max_damaged_volume", "m^2 (2-D) or m^3 (3-D)",
+           "largest measure of the damaged zone", kOnlyDamage | kGridQuantity}),
+      real<&RS::max_damaged_radius_m>({"max_damaged_radius_m", nullptr, "max_damaged_radius", "m",
+                                       "radius of a disk of the damaged zone's area",
                                        kOnlyDamage | kGridQuantity}),
       real<&RS::damage_dissipation_J_per_m>(
           {"damage_dissipation_J_per_m", nullptr, "damage_dissipation", "J/m",

@@ -31,16 +31,16 @@ enum class FigureType { kInteger, kReal, kFlag, kText, kSeries };
 
 // Where a figure goes and how it reads (bits of SummaryFigure::traits).
 enum FigureTrait : unsigned {
-  kInGroups = 1u << 0,      // inside "groups" (JSON) / JobSummary.groups
-  kDerived = 1u << 1,       // computed from other figures: written, never read or catalogued
-  kOptional = 1u << 2,      // absent from older results: reads as RunSummary's default
-  kOnly3D = 1u << 3,        // written only for a run with tetrahedra
-  kOnlyDamage = 1u << 4,    // written only for a run with phase-field damage
-  kOnlyNonEmpty = 1u << 5,  // text written only when not empty
-  kNotInJson = 1u << 6,     // not a key of its own (damage: the damage figures' presence)
-  kQueryable = 1u << 7,     // a QueryJobs name: a column of the jobs table as well
-  kGridQuantity = 1u << 8,  // a grid reduction's quantity
-  kNegativeIsNone = 1u << 9,  // negative means "never" / "not detected": NaN in reductions
+  kInGroups = 1u << 0,          // inside "groups" (JSON) / JobSummary.groups
+  kDerived = 1u << 1,           // computed from other figures: written, never read or catalogued
+  kOptional = 1u << 2,          // absent from older results: reads as RunSummary's default
+  kOnly3D = 1u << 3,            // written only for a run with tetrahedra
+  kOnlyDamage = 1u << 4,        // written only for a run with phase-field damage
+  kOnlyNonEmpty = 1u << 5,      // text written only when not empty
+  kNotInJson = 1u << 6,         // not a key of its own (damage: the damage figures' presence)
+  kQueryable = 1u << 7,         // a QueryJobs name: a column of the jobs table as well
+  kGridQuantity = 1u << 8,      // a grid reduction's quantity
+  kNegativeIsNone = 1u << 9,    // negative means "never" / "not detected": NaN in reductions
   kNotInJobSummary = 1u << 10,  // the job reports it (its state and error), not JobSummary
 };
 

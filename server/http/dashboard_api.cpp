@@ -170,6 +170,12 @@ void add_dashboard_api(HttpListener& listener, std::shared_ptr<grpc::Channel> ch
     });
   });
 
+  listener.get("/api/figures", R"(/api/figures)", [stub](const Request& req, Response& res) {
+    unary<v1::SummaryFigures>(req, res, [&](grpc::ClientContext* ctx, v1::SummaryFigures* out) {
+      return stub->ListSummaryFigures(ctx, v1::ListSummaryFiguresRequest{}, out);
+    });
+  });
+
   listener.get("/api/jobs", R"(/api/jobs)", [stub](const Request& req, Response& res) {
     adapted(res, [&] {
       v1::ListJobsRequest r;

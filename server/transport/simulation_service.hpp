@@ -76,6 +76,9 @@ class SimulationService final : public v1::SimulationService::Service {
                          v1::QueryJobsResponse* resp) override;
   grpc::Status GetCaller(grpc::ServerContext* ctx, const v1::GetCallerRequest* req,
                          v1::Caller* resp) override;
+  grpc::Status ListSummaryFigures(grpc::ServerContext* ctx,
+                                  const v1::ListSummaryFiguresRequest* req,
+                                  v1::SummaryFigures* resp) override;
   // simulation_service_downloads.cpp
   grpc::Status DownloadResult(grpc::ServerContext* ctx, const v1::DownloadResultRequest* req,
                               grpc::ServerWriter<v1::DownloadChunk>* writer) override;

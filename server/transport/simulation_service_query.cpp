@@ -11,6 +11,7 @@
 #include "server/transport/rpc_guard.hpp"
 #include "server/transport/rpc_support.hpp"
 #include "server/transport/simulation_service.hpp"
+#include "solver/summary_figures.hpp"
 
 namespace softshock::server {
 
@@ -137,6 +138,30 @@ Status SimulationService::query(const v1::QueryJobsRequest& req, v1::QueryJobsRe
     resp->set_next_page_token(make_page_token(key.str(), fingerprint));
   }
   return Status::OK;
+}
+
+// --- ListSummaryFigures -----------------------------------------------------------------------
+
+Status SimulationService::ListSummaryFigures(grpc::ServerContext* ctx,
+                                             const v1::ListSummaryFiguresRequest*,
+                                             v1::SummaryFigures* resp) {
+  return guarded(auth_, ctx, "ListSummaryFigures", [&](const Caller&) {
+    for (const auto& f : summary_figures()) {
+      if (f.has(kNotInJobSummary)) continue;
+      auto* out = resp->add_figures();
+      out->set_name(f.name);
+      if (f.former) out->set_former_name(f.former);
+      out->set_unit(f.unit);
+      out->set_meaning(f.meaning);
+      out->set_in_groups(f.has(kInGroups));
+      out->set_queryable(f.has(kQueryable));
+      out->set_grid_quantity(f.has(kGridQuantity));
+      out->set_only_3d(f.has(kOnly3D));
+      out->set_only_damage(f.has(kOnlyDamage));
+      out->set_derived(f.has(kDerived));
+    }
+    return Status::OK;
+  });
 }
 
 }  // namespace softshock::server

@@ -64,6 +64,26 @@ class CliWorkflowTest(DaemonTestCase):
         self.assertGreater(summary["energy_injected_J_per_m"], 0)
         self.assertAlmostEqual(summary["groups"]["gamma"], 6.15)
 
+        # The daemon's table of figures names every figure the summary has, and says which the
+        # query and grid reduce take.
+        figures = self.cli_json("figures")["figures"]
+        names = {f["name"] for f in figures}
+        self.assertLessEqual(set(summary) - {"id", "groups"}, names)
+        self.assertLessEqual(set(summary["groups"]), {f["name"] for f in figures
+                                                      if f.get("inGroups")})
+        by_name = {f["name"]: f for f in figures}
+        self.assertEqual(by_name["energy_injected_J_per_m"]["unit"], "J/m")
+        self.assertEqual(by_name["energy_injected_J_per_m"]["formerName"], "energy_injected")
+        self.assertTrue(by_name["max_abar_first_cycle"].get("gridQuantity"))
+        self.assertFalse(by_name["nodes"].get("queryable", False))
+        listed = self.cli_ok("figures", "--query").stdout.splitlines()
+        queryable = [line.split()[0] for line in listed[1:]]
+        self.assertEqual(sorted(queryable),
+                         sorted(("groups." if f.get("inGroups") else "") + f["name"]
+                                for f in figures if f.get("queryable")))
+        for name in queryable:  # every name it lists, the query takes
+            self.cli_ok("query", "--where", name.removeprefix("groups.") + ">-1e300")
+
         health = self.cli_ok("health")
         self.assertIn("SERVING", health.stdout)
 

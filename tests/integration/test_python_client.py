@@ -27,6 +27,20 @@ class PythonClientTest(DaemonTestCase):
         got = c.get(job.id)
         self.assertEqual(state_name(got), "SUCCEEDED")
         self.assertEqual(dict(got.labels), {"study": "py"})
+
+        # Every grid quantity the daemon lists, a reduction would take: here, every such figure
+        # is a key of the summary of a run without damage, or a damage-only one.
+        figures = c.summary_figures()
+        summary = c.summary(job.id)
+        for f in figures:
+            if f["grid_quantity"] and not f["only_damage"]:
+                self.assertIn(f["name"], summary, f)
+        self.assertEqual(next(f for f in figures if f["name"] == "wall_time_s")["former_name"],
+                         "wall_time")
+        # The client's offline copy of the former names is the daemon's.
+        from softshock_client.jobs import RENAMED_SUMMARY_NAMES
+        self.assertEqual({f["former_name"]: f["name"] for f in figures if f["former_name"]},
+                         RENAMED_SUMMARY_NAMES)
         self.assertEqual(got.attempt, 1)
         self.assertTrue(got.result_path.endswith(".h5"), got.result_path)
 

@@ -112,8 +112,8 @@ TEST(SummaryFigures, JobSummaryHasAFieldForEveryFigureAndNoOther) {
   check_message(v1::NondimensionalGroups::descriptor(), true);
   for (const auto& f : summary_figures()) {
     if (f.has(kNotInJobSummary)) continue;
-    const auto* d = f.has(kInGroups) ? v1::NondimensionalGroups::descriptor()
-                                     : v1::JobSummary::descriptor();
+    const auto* d =
+        f.has(kInGroups) ? v1::NondimensionalGroups::descriptor() : v1::JobSummary::descriptor();
     EXPECT_NE(d->FindFieldByName(f.name), nullptr) << f.name << " has no field in " << d->name();
   }
 
@@ -158,8 +158,8 @@ TEST(SummaryFigures, JobSummaryHasAFieldForEveryFigureAndNoOther) {
 class SummaryFiguresCatalogue : public ::testing::Test {
  protected:
   void SetUp() override {
-    dir_ = fs::temp_directory_path() /
-           ("softshock-figures-" + std::to_string(std::random_device{}()));
+    dir_ =
+        fs::temp_directory_path() / ("softshock-figures-" + std::to_string(std::random_device{}()));
     fs::create_directories(dir_);
     path_ = (dir_ / "catalogue.sqlite").string();
   }
@@ -181,9 +181,7 @@ class SummaryFiguresCatalogue : public ::testing::Test {
 // besides (but the job's id and the decimated series), the jobs table one for each query
 // figure; and every catalogued figure comes back as it went in.
 TEST_F(SummaryFiguresCatalogue, EveryCataloguedFigureHasItsColumnAndRoundTrips) {
-  {
-    Catalogue c(path_);
-  }
+  { Catalogue c(path_); }
   std::set<std::string> summaries = columns("job_summaries");
   const std::set<std::string> jobs = columns("jobs");
   for (const auto& f : summary_figures()) {

@@ -400,6 +400,17 @@ class Client:
         caller = self._call(self._stub.GetCaller, service_pb2.GetCallerRequest())
         return caller.user, caller.role
 
+    def summary_figures(self) -> List[dict]:
+        """The summary figures the daemon reports, in its summary's order: dicts with name,
+        former_name ("" if none), unit, meaning, in_groups, queryable (a query() name),
+        grid_quantity (a grid_reduction() quantity; so is "abar_at" with a t-bar), only_3d,
+        only_damage and derived."""
+        figures = self._call(self._stub.ListSummaryFigures,
+                             service_pb2.ListSummaryFiguresRequest())
+        keys = ("name", "former_name", "unit", "meaning", "in_groups", "queryable",
+                "grid_quantity", "only_3d", "only_damage", "derived")
+        return [{k: getattr(f, k) for k in keys} for f in figures.figures]
+
     def cancel(self, job_id: str) -> Job:
         """Cancels a queued or running job (your own; an admin: any); returns the job, normally
         CANCELLED (a running job gets up to ~5 s to stop; watch it if it is still RUNNING)."""

@@ -16,7 +16,8 @@ from __future__ import annotations
 import enum
 from typing import Union
 
-# Old name -> today's (as solver/run_summary.cpp's renamed_summary_names()).
+# Old name -> today's: the former names of the daemon's table of figures
+# (Client.summary_figures(); solver/summary_figures.cpp), kept here so a Summary reads them offline.
 RENAMED_SUMMARY_NAMES = {
     "wall_time": "wall_time_s",
     "end_time": "end_time_s",

@@ -8,12 +8,15 @@ import { el, labelsText, localTime, message, percent, progressBar, setProgress,
 import { fmt, gridMap } from "./plots.js";
 
 const POLL_MS = 2000;
-// GetGridReduction's quantities (docs/api.md); the daemon checks the name.
-export const QUANTITIES = ["max_abar_first_cycle", "max_abar", "abar_end", "abar_at",
-                           "max_abar_filtered_first_cycle", "max_abar_filtered",
-                           "abar_filtered_end", "max_aspect_ratio", "dominant_mode_end",
-                           "energy_injected_J_per_m", "energy_after_pulse_J_per_m",
-                           "shock_at_center_s", "wall_time_s"];
+export const DEFAULT_QUANTITY = "max_abar_first_cycle";
+
+// GetGridReduction's quantities: the daemon's grid figures (api/figures: its one table of
+// summary figures) and A-bar at a t-bar, the default first.
+export async function gridQuantities() {
+  const r = await api("api/figures");
+  const names = (r.figures || []).filter((f) => f.grid_quantity).map((f) => f.name);
+  return [DEFAULT_QUANTITY, ...names.filter((n) => n !== DEFAULT_QUANTITY), "abar_at"];
+}
 
 export function gridsPage(root, ctx) {
   const msg = el("p", { class: "message", role: "alert" });
@@ -53,7 +56,12 @@ export function gridPage(root, ctx, id) {
   const bar = progressBar(0);
   const counts = el("span", { id: "grid-counts", class: "muted" });
   const quantity = el("select", { id: "grid-quantity", "aria-label": "quantity" },
-                      QUANTITIES.map((q) => el("option", { value: q }, q)));
+                      el("option", { value: DEFAULT_QUANTITY }, DEFAULT_QUANTITY));
+  gridQuantities().then((names) => {
+    const chosen = quantity.value;
+    quantity.replaceChildren(...names.map((q) => el("option", { value: q }, q)));
+    quantity.value = chosen;
+  }).catch((e) => { if (!ctx.authFailed(e)) message(msg, `${e.code}: ${e.message}`); });
   const tbar = el("input", { id: "grid-tbar", type: "number", step: "any", value: "4",
                              "aria-label": "t-bar", hidden: true });
   const third = el("input", { id: "grid-third", type: "range", min: 0, max: 0, value: 0,
