@@ -50,6 +50,14 @@ constexpr double kFrameBytesPerTetrahedron = 6 * 8 + kNodesPerTetrahedron * 2 * 
 // Nodes (3 doubles), tetrahedra (4 int32), boundary faces (3 int32, ~0.1 per tetrahedron).
 constexpr double kMeshBytesPerTetrahedron = kNodesPerTetrahedron * 24 + 16 + 0.1 * 12;
 
+// The step's state (ExplicitStep::save_state): a SUCCEEDED job keeps it beside its result for
+// ExtendJob, and a running job's checkpoint holds it. Measured 163 B per triangle (nodes ~
+// elements / 2) and 179 B per tetrahedron of the meshers' meshes besides the history it carries
+// (test_admission, 2026-12-05), taken as 176 and 192 B; with damage also d and its degradation
+// per node and H and its degradation per element.
+constexpr double kStateBytesPerElement = 176;
+constexpr double kStateBytesPerTetrahedron = 192;
+
 // The step model (estimate_steps), fitted per element to the solver's step counts on 24 runs
 // (docs/reliability.md, "Time steps"): the passage's mean step over the compressed step, and the
 // later mean step over the step at rest.
@@ -81,6 +89,14 @@ double damage_bytes(const v1::RunSpec& spec, double elements, double nodes, int 
   if (dim == 3 && direct)
     bytes += kDamageFactorBytes3d * std::pow(nodes / kDamageFactorNodes3d, 2.5);
   return bytes;
+}
+
+double damage_state_bytes(const v1::RunSpec& spec, double elements, double nodes) {
+  return has_damage(spec) ? 16 * (elements + nodes) : 0;
+}
+// A frame's damage field: d per node (hdf5_support.hpp, kDamageField).
+double damage_frame_bytes(const v1::RunSpec& spec, double nodes) {
+  return has_damage(spec) ? 8 * nodes : 0;
 }
 
 }  // namespace
@@ -278,8 +294,11 @@ ResourceEstimate estimate_resources(const v1::RunSpec& spec, double elements, do
   // The history is kept while running and copied once when the file is finished.
   e.memory_bytes = kFixedBytes + kBytesPerElement * elements + 2 * history_bytes +
                    kFrameBytesPerElement * elements + damage_bytes(spec, elements, elements / 2, 2);
-  e.disk_bytes = frames * (kFrameBytesPerElement * elements + kFrameOverheadBytes) + history_bytes +
-                 kMeshBytesPerElement * elements;
+  e.state_bytes = kStateBytesPerElement * elements + history_bytes +
+                  damage_state_bytes(spec, elements, elements / 2);
+  e.disk_bytes = frames * (kFrameBytesPerElement * elements + kFrameOverheadBytes +
+                           damage_frame_bytes(spec, elements / 2)) +
+                 history_bytes + kMeshBytesPerElement * elements + e.state_bytes;
   return e;
 }
 
@@ -303,8 +322,11 @@ ResourceEstimate estimate_resources_3d(const v1::RunSpec& spec, double elements,
   e.memory_bytes = fixed + kBytesPerTetrahedron * elements + 2 * history_bytes +
                    kFrameBytesPerTetrahedron * elements +
                    damage_bytes(spec, elements, kNodesPerTetrahedron * elements, 3);
-  e.disk_bytes = frames * (kFrameBytesPerTetrahedron * elements + kFrameOverheadBytes) +
-                 history_bytes + kMeshBytesPerTetrahedron * elements;
+  e.state_bytes = kStateBytesPerTetrahedron * elements + history_bytes +
+                  damage_state_bytes(spec, elements, kNodesPerTetrahedron * elements);
+  e.disk_bytes = frames * (kFrameBytesPerTetrahedron * elements + kFrameOverheadBytes +
+                           damage_frame_bytes(spec, kNodesPerTetrahedron * elements)) +
+                 history_bytes + kMeshBytesPerTetrahedron * elements + e.state_bytes;
   return e;
 }
 
@@ -315,7 +337,7 @@ ResourceEstimate estimate_spec_resources(const v1::RunSpec& spec) {
   const double area = spec_area_m2(spec);
   if (!std::isnan(area)) return estimate_resources(spec, elements, area);
   const double nan = std::nan("");
-  return {nan, nan, nan, nan};
+  return {nan, nan, nan, nan, nan};
 }
 
 ResourceEstimate estimate_mesh_resources(const v1::RunSpec& spec, const Mesh& mesh) {

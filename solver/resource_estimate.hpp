@@ -18,7 +18,10 @@ struct ResourceEstimate {
   double dt_s = 0;          // the step while the load's shock crosses the body (dt_load)
   double steps = 0;         // time steps to run.end_time (estimate_steps)
   double memory_bytes = 0;  // mesh + state + history (kept and copied once) + one frame
-  double disk_bytes = 0;    // frames x fields + history + mesh
+  // The result file (frames x fields + history + mesh) and the step's state that a SUCCEEDED job
+  // keeps for ExtendJob (a running job's checkpoint holds the same).
+  double disk_bytes = 0;
+  double state_bytes = 0;  // that state, part of disk_bytes
 };
 
 // A mesh's smallest element altitude and the 1st percentile of its elements' altitudes

@@ -58,7 +58,8 @@ void check_admission(const v1::RunSpec& spec, const ResourceEstimate& e,
   }
   if (!(e.disk_bytes <= limits.max_disk_bytes)) {
     throw SpecError("run.output_interval",
-                    "the result file would take about " + bytes(e.disk_bytes) +
+                    "the result file and the state kept for ExtendJob would take about " +
+                        bytes(e.disk_bytes) +
                         " (field frames "
                         "every run.output_interval over run.end_time, each sized by "
                         "geometry.target_elements), more than the daemon's max-job-disk = " +

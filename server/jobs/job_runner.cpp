@@ -419,7 +419,8 @@ void JobRunner::run_job(const std::string& id, CancelToken& cancel) {
   const std::string dir = job_dir(id);
   if (const double free = free_bytes(); free < estimate.disk_bytes + config_.min_free_bytes) {
     finish(JobState::kFailed, reason::kDiskFull,
-           "the data folder has " + megabytes(free) + " free; this job's result needs about " +
+           "the data folder has " + megabytes(free) +
+               " free; this job's result and the state it keeps need about " +
                megabytes(estimate.disk_bytes) + " above a reserve of " +
                megabytes(config_.min_free_bytes),
            "", nullptr);

@@ -7,6 +7,7 @@
 
 #include <chrono>
 #include <filesystem>
+#include <optional>
 #include <random>
 
 #include "../solver/scratch_dir.hpp"
@@ -15,9 +16,11 @@
 #include "server/daemon_config.hpp"
 #include "server/jobs/admission.hpp"
 #include "server/jobs/grid.hpp"
+#include "server/jobs/job_extension.hpp"
 #include "server/jobs/job_runner.hpp"
 #include "softshock/v1/service.grpc.pb.h"
 #include "solver/io/async_result_writer.hpp"
+#include "solver/io/checkpoint_file.hpp"
 #include "solver/resource_estimate.hpp"
 #include "solver/run_spec.hpp"
 #include "solver/run_summary.hpp"
@@ -59,27 +62,51 @@ TEST(ResourceEstimate, StepEstimateCoversTheStepsTaken) {
   }
 }
 
-// The disk estimate against a result file actually written (frames every 10 ns of a 40 ns run on
-// 4,000 elements): never below it -- a job must not outgrow what admission charged it -- and
-// within 1.5x (the estimate rounds nodes to half the elements and counts every history column).
-TEST(ResourceEstimate, DiskEstimateCoversTheWrittenResult) {
-  const v1::RunSpec spec = normalize_spec(parse_spec_json(
-      R"({"geometry":{"target_elements":4000},"run":{"end_time":4e-8,"output_interval":1e-8}})"));
-  const Problem problem = make_problem(spec);
+// What a SUCCEEDED job leaves on the disk: its result file, and the final state the runner keeps
+// for ExtendJob (job_extension.hpp; a running job's checkpoint holds the same state). Runs the
+// spec to its end and prints both.
+double written_bytes(const v1::RunSpec& spec, const Problem& problem, RunResult* out) {
   softshock::testing::ScratchDir dir("admission");
   AsyncResultWriter writer(dir.str(), problem.mesh, spec_to_json(spec), "test");
   RunControl control;
   control.on_frame = [&](const FieldFrame& f) { writer.write_frame(f); };
-  const RunResult result = run_simulation(problem, make_options(spec), control);
-  ASSERT_EQ(result.status, RunStatus::kCompleted) << result.error;
-  writer.finish(result.history, summarize(problem, result), true, "");
-  const double written = static_cast<double>(fs::file_size(writer.h5_path()));
-  const ResourceEstimate e = estimate_resources(
-      spec, static_cast<double>(problem.mesh.element_count()), spec_area_m2(spec));
-  std::printf("result file %.0f bytes, disk estimate %.0f bytes (%.2fx)\n", written, e.disk_bytes,
-              e.disk_bytes / written);
-  EXPECT_GE(e.disk_bytes, written);
-  EXPECT_LT(e.disk_bytes, 1.5 * written);
+  std::optional<RunState> final_state;
+  control.checkpoint_at_stop = true;
+  control.on_checkpoint = [&](const RunState& state) { final_state = state; };
+  *out = run_simulation(problem, make_options(spec), control);
+  EXPECT_EQ(out->status, RunStatus::kCompleted) << out->error;
+  writer.finish(out->history, summarize(problem, *out), true, "");
+  EXPECT_TRUE(final_state && final_state->stopped);
+  if (!final_state) return 0;
+  save_final_state(dir.str(), spec_to_json(spec), mesh_fingerprint(problem.mesh), *final_state,
+                   writer.h5_path());
+  const double result = static_cast<double>(fs::file_size(writer.h5_path()));
+  const double state = static_cast<double>(fs::file_size(final_state_path(dir.str())));
+  std::printf("%zu elements, %zu nodes: result file %.0f bytes, kept state %.0f bytes\n",
+              problem.mesh.element_count(), problem.mesh.node_count(), result, state);
+  return result + state;
+}
+
+// The disk estimate against what a job actually wrote (frames every 10 ns of a 40 ns run on
+// 4,000 elements): never below it -- a job must not outgrow what admission charged it -- and
+// within 1.5x (the estimate rounds nodes to half the elements and counts every history column).
+// With damage (model 1, to 40 ns: the state adds d and H) as without.
+TEST(ResourceEstimate, DiskEstimateCoversTheWrittenResult) {
+  for (const char* damage : {"", R"(,"damage":{"model":"TALAMINI","length":5e-6})"}) {
+    const v1::RunSpec spec = normalize_spec(
+        parse_spec_json(std::string(R"({"geometry":{"target_elements":4000},)"
+                                    R"("run":{"end_time":4e-8,"output_interval":1e-8})") +
+                        damage + "}"));
+    const Problem problem = make_problem(spec);
+    RunResult result;
+    const double written = written_bytes(spec, problem, &result);
+    const ResourceEstimate e = estimate_resources(
+        spec, static_cast<double>(problem.mesh.element_count()), spec_area_m2(spec));
+    std::printf("written %.0f bytes, disk estimate %.0f bytes (%.2fx)\n", written, e.disk_bytes,
+                e.disk_bytes / written);
+    EXPECT_GE(e.disk_bytes, written);
+    EXPECT_LT(e.disk_bytes, 1.5 * written);
+  }
 }
 
 // The same for tetrahedra (a cylinder of the default mesher, 20 um thick): the step never
@@ -90,20 +117,14 @@ TEST(ResourceEstimate, TetrahedraStepAndDiskAreCovered) {
           "run":{"end_time":4e-8,"output_interval":1e-8}})"));
   const Problem problem = make_problem(spec);
   ASSERT_EQ(problem.mesh.dimension(), 3);
-  softshock::testing::ScratchDir dir("admission3d");
-  AsyncResultWriter writer(dir.str(), problem.mesh, spec_to_json(spec), "test");
-  RunControl control;
-  control.on_frame = [&](const FieldFrame& f) { writer.write_frame(f); };
-  const RunResult result = run_simulation(problem, make_options(spec), control);
-  ASSERT_EQ(result.status, RunStatus::kCompleted) << result.error;
-  writer.finish(result.history, summarize(problem, result), true, "");
-  const double written = static_cast<double>(fs::file_size(writer.h5_path()));
+  RunResult result;
+  const double written = written_bytes(spec, problem, &result);
   const ResourceEstimate from_spec = estimate_spec_resources(spec);
   const ResourceEstimate from_mesh = estimate_mesh_resources(spec, problem.mesh);
   const double steps = static_cast<double>(result.steps);
   std::printf(
       "3-D: %zu tetrahedra, %.0f steps; estimated %.0f from the mesh (%.2fx), %.0f from the spec "
-      "(%.2fx); result file %.0f bytes, disk estimate %.0f (%.2fx)\n",
+      "(%.2fx); written %.0f bytes, disk estimate %.0f (%.2fx)\n",
       problem.mesh.element_count(), steps, from_mesh.steps, from_mesh.steps / steps,
       from_spec.steps, from_spec.steps / steps, written, from_mesh.disk_bytes,
       from_mesh.disk_bytes / written);
