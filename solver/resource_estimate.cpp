@@ -292,10 +292,12 @@ ResourceEstimate estimate_resources(const v1::RunSpec& spec, double elements, do
   const double frames =
       r.output_interval() > 0 ? std::floor(r.end_time() / r.output_interval()) + 1 : 0;
   // The history is kept while running and copied once when the file is finished.
-  e.memory_bytes = kFixedBytes + kBytesPerElement * elements + 2 * history_bytes +
-                   kFrameBytesPerElement * elements + damage_bytes(spec, elements, elements / 2, 2);
   e.state_bytes = kStateBytesPerElement * elements + history_bytes +
                   damage_state_bytes(spec, elements, elements / 2);
+  // The state is also captured in memory where the run stops (softshockd keeps it).
+  e.memory_bytes = kFixedBytes + kBytesPerElement * elements + 2 * history_bytes +
+                   kFrameBytesPerElement * elements +
+                   damage_bytes(spec, elements, elements / 2, 2) + e.state_bytes;
   e.disk_bytes = frames * (kFrameBytesPerElement * elements + kFrameOverheadBytes +
                            damage_frame_bytes(spec, elements / 2)) +
                  history_bytes + kMeshBytesPerElement * elements + e.state_bytes;
@@ -319,11 +321,11 @@ ResourceEstimate estimate_resources_3d(const v1::RunSpec& spec, double elements,
   const double fixed = !spec.geometry().mesh_file().empty() || !spec.geometry().mesh_id().empty()
                            ? kFixedBytes3dWithGmsh
                            : kFixedBytes3d;
-  e.memory_bytes = fixed + kBytesPerTetrahedron * elements + 2 * history_bytes +
-                   kFrameBytesPerTetrahedron * elements +
-                   damage_bytes(spec, elements, kNodesPerTetrahedron * elements, 3);
   e.state_bytes = kStateBytesPerTetrahedron * elements + history_bytes +
                   damage_state_bytes(spec, elements, kNodesPerTetrahedron * elements);
+  e.memory_bytes = fixed + kBytesPerTetrahedron * elements + 2 * history_bytes +
+                   kFrameBytesPerTetrahedron * elements +
+                   damage_bytes(spec, elements, kNodesPerTetrahedron * elements, 3) + e.state_bytes;
   e.disk_bytes = frames * (kFrameBytesPerTetrahedron * elements + kFrameOverheadBytes +
                            damage_frame_bytes(spec, kNodesPerTetrahedron * elements)) +
                  history_bytes + kMeshBytesPerTetrahedron * elements + e.state_bytes;

@@ -15,9 +15,11 @@
 namespace softshock {
 
 struct ResourceEstimate {
-  double dt_s = 0;          // the step while the load's shock crosses the body (dt_load)
-  double steps = 0;         // time steps to run.end_time (estimate_steps)
-  double memory_bytes = 0;  // mesh + state + history (kept and copied once) + one frame
+  double dt_s = 0;   // the step while the load's shock crosses the body (dt_load)
+  double steps = 0;  // time steps to run.end_time (estimate_steps)
+  // mesh + the step's arrays + history (kept and copied once) + one frame + the state captured
+  // where the run stops
+  double memory_bytes = 0;
   // The result file (frames x fields + history + mesh) and the step's state that a SUCCEEDED job
   // keeps for ExtendJob (a running job's checkpoint holds the same).
   double disk_bytes = 0;

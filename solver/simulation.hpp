@@ -175,9 +175,9 @@ struct RunControl {
   // read); when it says yes, on_checkpoint gets the state at the end of that step. With
   // checkpoint_at_stop, on_checkpoint also gets the state where the loop stopped
   // (RunState::stopped: the end time or a cancellation; not a failure), before the final sample and
-  // frame.
+  // frame. The state is the callee's to keep (move it: a copy doubles its memory at the end).
   std::function<bool(const Progress&)> checkpoint_due;
-  std::function<void(const RunState&)> on_checkpoint;
+  std::function<void(RunState&&)> on_checkpoint;
   bool checkpoint_at_stop = false;
   // Continue from this state (taken from a run of the same problem and options, but for a later
   // or equal end time) instead of starting at t = 0. Throws std::invalid_argument when it does

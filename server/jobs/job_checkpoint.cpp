@@ -55,11 +55,11 @@ void JobCheckpointer::attach(RunControl& control, const CancelToken& cancel) {
     control.checkpoint_due = [this](const Progress&) { return Clock::now() >= next_; };
   }
   control.checkpoint_at_stop = true;
-  control.on_checkpoint = [this, &cancel](const RunState& state) {
-    // Where the run stopped: a checkpoint only when the job will run again; else kept in memory,
-    // for a SUCCEEDED job's final state.
+  control.on_checkpoint = [this, &cancel](RunState&& state) {
+    // Where the run stopped: a checkpoint only when the job will run again; else kept in memory
+    // (moved, not copied), for a SUCCEEDED job's final state.
     if (state.stopped && cancel.reason() != StopReason::kShutdown) {
-      final_state_ = state;
+      final_state_ = std::move(state);
       return;
     }
     take(state);

@@ -9,6 +9,7 @@
 #include <filesystem>
 #include <optional>
 #include <random>
+#include <utility>
 
 #include "../solver/scratch_dir.hpp"
 #include "daemon_fixture.hpp"
@@ -72,7 +73,7 @@ double written_bytes(const v1::RunSpec& spec, const Problem& problem, RunResult*
   control.on_frame = [&](const FieldFrame& f) { writer.write_frame(f); };
   std::optional<RunState> final_state;
   control.checkpoint_at_stop = true;
-  control.on_checkpoint = [&](const RunState& state) { final_state = state; };
+  control.on_checkpoint = [&](RunState&& state) { final_state = std::move(state); };
   *out = run_simulation(problem, make_options(spec), control);
   EXPECT_EQ(out->status, RunStatus::kCompleted) << out->error;
   writer.finish(out->history, summarize(problem, *out), true, "");

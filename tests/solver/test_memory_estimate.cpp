@@ -35,8 +35,12 @@ double peak_resident_bytes(const std::string& spec_path, const std::string& out_
   if (pid == 0) {
     const int null = ::open("/dev/null", O_WRONLY);
     ::dup2(null, STDOUT_FILENO);
+    // A checkpoint folder with no periodic checkpoint: the state is captured where the run
+    // stops, as softshockd captures it to keep for ExtendJob, so the peak includes it.
+    const std::string checkpoints = out_dir + "/checkpoints";
     ::execl(solve.c_str(), solve.c_str(), "--spec", spec_path.c_str(), "--out", out_dir.c_str(),
-            "--no-mesh-cache", static_cast<char*>(nullptr));
+            "--no-mesh-cache", "--checkpoint-dir", checkpoints.c_str(), "--checkpoint-interval",
+            "1e9", static_cast<char*>(nullptr));
     ::_exit(127);
   }
   int status = 0;
