@@ -3,10 +3,13 @@
 
 On a shared or virtual machine one bench_solver run's figure moves by 15-30 % from minute to
 minute, so a single run cannot tell two builds apart, nor give a thread speed-up. This script runs
-each given bench_solver binary in turn, `--rounds` times, so that every binary sees the same
+each given bench_solver binary in turn (GrindTime and GrindTime3D cases), `--rounds` times, so that every binary sees the same
 phases of the machine, and prints per binary and case the median and the smallest wall grind
 time (ns per element-step) and, for each mesh size, the two-thread speed-up of every round (the
-one-thread and two-thread cases of one invocation ran back to back) with its median.
+one-thread and two-thread cases of one invocation ran back to back) with its median, and, for
+every binary after the first, its ratio to the first in each round (the two ran back to back) with
+the median, the quartiles and in how many rounds it was the slower: a difference of a few per cent
+shows there where the medians of separate runs cannot show it.
 
   python3 bench/kernel_rounds.py --rounds 8 build/bench/bench_solver [/tmp/old/bench_solver ...]
 
@@ -19,7 +22,7 @@ import statistics
 import subprocess
 import sys
 
-CASE = re.compile(r"^BM_GrindTime/target_elements:(\d+)/threads:(\d+)/\S*\s.*?"
+CASE = re.compile(r"^BM_GrindTime(?:3D)?/target_elements:(\d+)/threads:(\d+)/\S*\s.*?"
                   r"wall_ns_per_elem_step=([0-9.eE+-]+)")
 
 
@@ -74,6 +77,22 @@ def main():
             if ratios:
                 listed = ", ".join(f"{x:.2f}" for x in ratios)
                 print(f"| {name} | {elements} | {listed} | {statistics.median(ratios):.2f} |")
+
+    if len(names) > 1:
+        first = names[0]
+        print(f"\n| binary | elements | threads | ratio to {first}: median | quartiles | slower in |")
+        print("|---|---|---|---|---|---|")
+        for name in names[1:]:
+            cases = sorted({c for figures in rounds[name] for c in figures})
+            for case in cases:
+                ratios = sorted(a[case] / b[case] for a, b in zip(rounds[name], rounds[first])
+                                if case in a and case in b)
+                if not ratios:
+                    continue
+                n = len(ratios)
+                slower = sum(r > 1 for r in ratios)
+                print(f"| {name} | {case[0]} | {case[1]} | {statistics.median(ratios):.3f} | "
+                      f"{ratios[n // 4]:.3f}-{ratios[(3 * n) // 4]:.3f} | {slower} of {n} |")
 
 
 if __name__ == "__main__":
