@@ -81,8 +81,13 @@ class CliWorkflowTest(DaemonTestCase):
         self.assertEqual(sorted(queryable),
                          sorted(("groups." if f.get("inGroups") else "") + f["name"]
                                 for f in figures if f.get("queryable")))
-        for name in queryable:  # every name it lists, the query takes
+        # The list is exactly what the query takes: every listed name, and no other figure.
+        for name in queryable:
             self.cli_ok("query", "--where", name.removeprefix("groups.") + ">-1e300")
+        for f in figures:
+            if not f.get("queryable"):
+                p = self.cli("query", "--where", f["name"] + ">-1e300")
+                self.assertNotEqual(p.returncode, 0, f["name"])
 
         health = self.cli_ok("health")
         self.assertIn("SERVING", health.stdout)
