@@ -1,8 +1,10 @@
 // step_estimate_study: the admission's step estimate against the steps the solver takes
 // (docs/reliability.md, "Time steps"). Reads lines "NAME SPEC-JSON"
-// (bench/step_estimate_cases.txt), runs each spec and prints the steps taken and the estimate from
-// the mesh and from the spec.
-//   build/bench/step_estimate_study bench/step_estimate_cases.txt
+// (bench/step_estimate_cases.txt), runs each spec and prints the steps taken, the estimate from
+// the mesh and from the spec, and the estimate's ingredients (dt_load, dt_rest, the passage).
+//   build/bench/step_estimate_study bench/step_estimate_cases.txt [--trace DIR]
+// --trace DIR also writes DIR/NAME.csv: per history sample the time, the stable step in force
+// and the interval's smallest (ns), for fitting the model's factors.
 #include <cstdio>
 #include <fstream>
 #include <string>
@@ -12,8 +14,9 @@
 #include "solver/simulation.hpp"
 
 int main(int argc, char** argv) {
-  if (argc != 2) {
-    std::fprintf(stderr, "usage: step_estimate_study CASES.txt\n");
+  const bool trace = argc == 4 && std::string(argv[2]) == "--trace";
+  if (argc != 2 && !trace) {
+    std::fprintf(stderr, "usage: step_estimate_study CASES.txt [--trace DIR]\n");
     return 2;
   }
   std::ifstream in(argv[1]);
@@ -21,8 +24,10 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "step_estimate_study: cannot read %s\n", argv[1]);
     return 2;
   }
-  std::printf("| run | elements | steps taken | from the mesh | from the spec | status |\n");
-  std::printf("|---|---|---|---|---|---|\n");
+  std::printf(
+      "| run | elements | steps taken | from the mesh | from the spec | dt_load, dt_rest (ns) | "
+      "passage (ns) | status |\n");
+  std::printf("|---|---|---|---|---|---|---|---|\n");
   std::string name, json;
   while (in >> name && std::getline(in, json)) {
     using namespace softshock;
@@ -32,10 +37,24 @@ int main(int argc, char** argv) {
     const double steps = static_cast<double>(result.steps);
     const double from_mesh = estimate_mesh_resources(spec, problem.mesh).steps;
     const double from_spec = estimate_spec_resources(spec).steps;
-    std::printf("| %s | %zu | %.0f | %.2fx | %.2fx | %s |\n", name.c_str(),
+    double crossing = crossing_length_m(spec);
+    if (std::isnan(crossing)) crossing = mesh_crossing_length_m(problem.mesh);
+    const StepEstimate parts =
+        estimate_steps(spec, mesh_altitudes(problem.mesh), problem.mesh.dimension(), crossing);
+    std::printf("| %s | %zu | %.0f | %.2fx | %.2fx | %.3f, %.3f | %.1f | %s |\n", name.c_str(),
                 problem.mesh.element_count(), steps, from_mesh / steps, from_spec / steps,
+                parts.dt_load_s * 1e9, parts.dt_rest_s * 1e9, parts.passage_s * 1e9,
                 result.status == RunStatus::kCompleted ? "completed" : result.error.c_str());
     std::fflush(stdout);
+    if (trace) {
+      std::ofstream csv(std::string(argv[3]) + "/" + name + ".csv");
+      csv << "# dt_load_ns " << parts.dt_load_s * 1e9 << " dt_rest_ns " << parts.dt_rest_s * 1e9
+          << " passage_ns " << parts.passage_s * 1e9 << " steps " << result.steps << "\n";
+      csv << "time_ns,dt_ns,min_dt_ns\n";
+      const History& h = result.history;
+      for (std::size_t i = 0; i < h.size(); ++i)
+        csv << h.time[i] * 1e9 << "," << h.dt[i] * 1e9 << "," << h.min_dt[i] * 1e9 << "\n";
+    }
   }
   return 0;
 }

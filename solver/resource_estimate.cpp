@@ -58,13 +58,21 @@ constexpr double kMeshBytesPerTetrahedron = kNodesPerTetrahedron * 24 + 16 + 0.1
 constexpr double kStateBytesPerElement = 176;
 constexpr double kStateBytesPerTetrahedron = 192;
 
-// The step model (estimate_steps), fitted per element to the solver's step counts on 24 runs
-// (docs/reliability.md, "Time steps"): the passage's mean step over the compressed step, and the
-// later mean step over the step at rest.
+// The step model (estimate_steps), fitted per element to the solver's step counts on the first 25
+// runs of bench/step_estimate_cases.txt, four to 800 ns and two to 1.6 us, the rest held out
+// (docs/reliability.md, "Time steps"): the mean step over dt_load while the shock goes in (the
+// pulse and L / U: it converges at the centre, where the step dips to 0.3-0.6 dt_load) and while
+// it comes back (L / U);
+// after that passage b dt_rest, falling as 1 / (1 + s / tau) with the time s since the passage,
+// tau = m 2 L / c0, down to b dt_rest / F (the rim's undulations grow and squeeze its elements:
+// the step is near 0.35 dt_rest from ~550 to ~900 ns on the 90 um disk, and recovers to 0.6-0.9
+// by 1.6 us). Cylinders with BONDED faces have their own factors, b over dt_load and no fall (the
+// corners held by the glass keep the step at 1-3.7 dt_load after the passage).
 struct StepFactors {
-  double load, rest;
+  double inbound, outbound, after, fall, fall_limit;  // after: b; fall: m (0: none); limit: F
 };
-constexpr StepFactors kStepFactors2d{1.2, 0.5}, kStepFactors3d{1.0, 0.4};
+constexpr StepFactors kStepFactors2d{1.25, 1.25, 0.99, 3.5, 2.5},
+    kStepFactors3d{0.95, 2.0, 0.69, 6.75, 1.5}, kBondedStepFactors3d{0.775, 2.25, 1.37, 0, 1};
 // The meshers' smallest and 1st-percentile element altitudes over the mean element's (equilateral
 // triangle or regular tetrahedron of the mean area or volume), measured on their meshes
 // (docs/reliability.md) and rounded down: concentric rings 0.718 / 0.75 (4k-66k triangles),
@@ -158,14 +166,20 @@ double stable_dt(const v1::RunSpec& spec, double altitude0, double mass_factor, 
          std::sqrt(continuum::stable_step_sq_kinematic(h * h, c_sq, q * h));
 }
 
+// The longitudinal sound speed at rest, c0.
+double rest_wave_speed(const v1::RunSpec& spec) {
+  const auto& m = spec.material();
+  return std::sqrt(
+      continuum::longitudinal_speed_sq(m.bulk_modulus(), m.shear_modulus(), m.density(), 1.0));
+}
+
 // The load's shock speed, U^2 = p / (rho0 (1 - J)) (mass and momentum across the front, the
 // Tait state behind it); the longitudinal sound speed for a load too weak to compress.
 double shock_speed(const v1::RunSpec& spec) {
   const auto& m = spec.material();
   const double p = std::max(0.0, spec.load().pressure());
   const double j = std::pow(tait_j_pow_minus_n(m, p), -1.0 / (m.tait_gamma() + 1.0));
-  const double c0 = std::sqrt(
-      continuum::longitudinal_speed_sq(m.bulk_modulus(), m.shear_modulus(), m.density(), 1.0));
+  const double c0 = rest_wave_speed(spec);
   return 1.0 - j > 1e-9 ? std::max(c0, std::sqrt(p / (m.density() * (1.0 - j)))) : c0;
 }
 
@@ -244,22 +258,41 @@ StepEstimate estimate_steps(const v1::RunSpec& spec, const MeshAltitudes& altitu
   const double alpha = spec.element().mass_blend();
   const double mass_factor =
       dim == 2 ? mass_blend_step_factor(alpha) : tet4_mass_blend_step_factor(alpha);
-  const StepFactors factors = dim == 2 ? kStepFactors2d : kStepFactors3d;
+  const auto& g = spec.geometry();
+  const bool bonded = g.has_cylinder() && g.cylinder().faces() == v1::BONDED;
+  const StepFactors factors =
+      dim == 2 ? kStepFactors2d : (bonded ? kBondedStepFactors3d : kStepFactors3d);
   StepEstimate e;
   e.dt_rest_s = stable_dt(spec, altitudes.smallest_m, mass_factor, 0.0, false);
   // Many elements are compressed at once: the step follows the compressed step of a low percentile
   // of the altitudes, unless the one smallest element at rest is slower still.
   e.dt_load_s = std::min(e.dt_rest_s, stable_dt(spec, altitudes.percentile1_m, mass_factor,
                                                 spec.load().pressure(), true));
-  e.passage_s = std::max(0.0, spec.load().duration()) + 2.0 * crossing_length / shock_speed(spec);
-  // Faces bonded to the glass hold the rim's corners while the rim moves: their elements stay
-  // strained and the step stays near dt_load after the passage too (measured: a 50 um layer's
-  // mean step over 200 ns is dt_load's).
-  const auto& g = spec.geometry();
-  if (g.has_cylinder() && g.cylinder().faces() == v1::BONDED) e.passage_s = HUGE_VAL;
+  const double pulse = std::max(0.0, spec.load().duration());
+  const double crossing_s = crossing_length / shock_speed(spec);
+  e.passage_s = pulse + 2.0 * crossing_s;
   const double end = spec.run().end_time();
-  e.steps = std::min(end, e.passage_s) / (factors.load * e.dt_load_s) +
-            std::max(0.0, end - e.passage_s) / (factors.rest * e.dt_rest_s);
+  const double turn = std::min(end, pulse + crossing_s), passage = std::min(end, e.passage_s);
+  const double inbound_dt = std::min(e.dt_rest_s, factors.inbound * e.dt_load_s);
+  const double outbound_dt = std::min(e.dt_rest_s, factors.outbound * e.dt_load_s);
+  const double after_dt =
+      bonded ? std::min(e.dt_rest_s, factors.after * e.dt_load_s) : factors.after * e.dt_rest_s;
+  // After the passage, the integral of min(F, 1 + s / tau) / after_dt over s.
+  const double after_s = std::max(0.0, end - passage);
+  const double fall_s = factors.fall * 2.0 * crossing_length / rest_wave_speed(spec);
+  const double falling_s = std::min(after_s, (factors.fall_limit - 1.0) * fall_s);
+  const double after_steps = (fall_s > 0 ? falling_s + 0.5 * falling_s * falling_s / fall_s +
+                                               (after_s - falling_s) * factors.fall_limit
+                                         : after_s) /
+                             after_dt;
+  e.steps = turn / inbound_dt + (passage - turn) / outbound_dt + after_steps;
+  // The solver lands exactly on every history sample, on the pulse's end and on every frame: the
+  // step before each is cut short, half a step on average where the step varies. That is up to
+  // a quarter of the steps of a coarse cylinder whose step is near the 1 ns sample interval.
+  const auto& r = spec.run();
+  e.steps += 0.5 * std::ceil(end / r.history_interval() - 1e-9);
+  if (pulse > 0 && pulse < end) e.steps += 0.5;
+  if (r.output_interval() > 0) e.steps += 0.5 * std::floor(end / r.output_interval());
   return e;
 }
 

@@ -34,16 +34,17 @@ struct MeshAltitudes {
 MeshAltitudes mesh_altitudes(const Mesh& mesh);
 
 // The time steps of a run. The solver's step is the smallest over the elements and follows the
-// compressed ones: while the load's shock crosses the body and comes back to the loaded surface
-// (the passage: load.duration + 2 L / U, L the crossing length, U the shock speed at the load,
-// U^2 = p / (rho0 (1 - J))) it is near dt_load, the stable step of the 1st-percentile element in
-// the Tait state at the load's pressure (altitude shortened by J, the front's artificial
+// compressed ones: while the load's shock goes in (the pulse + L / U, L the crossing length, U the
+// shock speed at the load, U^2 = p / (rho0 (1 - J))) and comes back to the loaded surface
+// (another L / U: the passage) it is near dt_load, the stable step of the 1st-percentile element
+// in the Tait state at the load's pressure (altitude shortened by J, the front's artificial
 // viscosity); after it the body rings with weaker waves and the step stays below the smallest
-// element's at rest, dt_rest. steps = min(T, passage) / (a dt_load) + max(0, T - passage) /
-// (b dt_rest), a and b fitted per dimension to the solver's counts; bonded cylinder faces keep
-// dt_load to the end (docs/reliability.md, "Time steps": 0.99-1.75x the steps taken on 36 runs of
-// triangles and tetrahedra; a mesh that collapses, as the Richtmyer-Meshkov box's jets, is not
-// foreseen).
+// element's at rest, dt_rest, falling for a while as the rim's undulations grow. Each stretch's
+// mean step is a factor times dt_load or dt_rest, fitted per dimension (bonded cylinder faces:
+// their own), and the solver lands on every history sample, half a step more per sample
+// (docs/reliability.md, "Time steps": from the mesh 1.01-1.50x the steps taken on 22 runs of
+// triangles, 1.00-1.30x on 15 of tetrahedra with sliding faces, 1.00-1.75x on 10 with bonded
+// faces; a mesh that collapses, as the Richtmyer-Meshkov box's jets, is not foreseen).
 struct StepEstimate {
   double dt_load_s = 0, dt_rest_s = 0, passage_s = 0, steps = 0;
 };

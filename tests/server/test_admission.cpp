@@ -39,8 +39,8 @@ v1::RunSpec parse(const std::string& json) {
 
 // The step estimate against the steps the solver takes, from the mesh (at a job's start) and from
 // the spec alone (at submission): a 4k disk to 72 ns (the load's shock crossing the disk and coming
-// back) and to 400 ns. Never below, within 1.5x here (measured 1.27 / 1.29x and 1.10 / 1.13x; over
-// 36 runs of triangles and tetrahedra 0.99-1.79x: docs/reliability.md, "Time steps").
+// back) and to 400 ns. Never below, within 1.5x here (measured 1.34 / 1.37x and 1.00 / 1.03x; over
+// the study's runs: docs/reliability.md, "Time steps").
 TEST(ResourceEstimate, StepEstimateCoversTheStepsTaken) {
   for (const char* end : {"7.2e-8", "4e-7"}) {
     const v1::RunSpec spec =
@@ -129,7 +129,7 @@ TEST(ResourceEstimate, TetrahedraStepAndDiskAreCovered) {
       problem.mesh.element_count(), steps, from_mesh.steps, from_mesh.steps / steps,
       from_spec.steps, from_spec.steps / steps, written, from_mesh.disk_bytes,
       from_mesh.disk_bytes / written);
-  // Steps: never below, within 1.5x here (measured 1.10x and 1.13x).
+  // Steps: never below, within 1.5x here (measured 1.27x and 1.30x).
   EXPECT_GE(from_mesh.steps, steps);
   EXPECT_LE(from_mesh.steps, 1.5 * steps);
   EXPECT_GE(from_spec.steps, steps);
@@ -143,11 +143,40 @@ TEST(ResourceEstimate, TetrahedraStepAndDiskAreCovered) {
   EXPECT_NEAR(from_spec.disk_bytes / from_mesh.disk_bytes, 1.0 / count, 0.02);
 }
 
+// Tetrahedra past the passage (the shock in, at the centre and back): the 20 um cylinder to
+// 200 ns with sliding and with bonded faces, whose late steps differ (the glass holds the rim's
+// corners). Never below, within 1.5x (measured 1.12 / 1.14x sliding, 1.25 / 1.28x bonded, from
+// the mesh / the spec). Without the sample landing (half a step per sample) the sliding run is
+// 0.94x and the bonded 1.11x.
+TEST(ResourceEstimate, TetrahedralStepEstimateCoversSlidingAndBondedFaces) {
+  for (const char* faces : {"SLIDING", "BONDED"}) {
+    const v1::RunSpec spec =
+        parse(std::string(R"({"geometry":{"cylinder":{"thickness":2e-5,"faces":")") + faces +
+              R"("},"target_elements":20000},
+            "run":{"end_time":2e-7,"output_interval":0}})");
+    const Problem problem = make_problem(spec);
+    const RunResult result = run_simulation(problem, make_options(spec), RunControl{});
+    ASSERT_EQ(result.status, RunStatus::kCompleted) << result.error;
+    const double steps = static_cast<double>(result.steps);
+    const double from_mesh = estimate_mesh_resources(spec, problem.mesh).steps;
+    const double from_spec = estimate_spec_resources(spec).steps;
+    std::printf(
+        "%s: %.0f steps; estimated %.0f from the mesh (%.2fx), %.0f from the spec (%.2fx)\n", faces,
+        steps, from_mesh, from_mesh / steps, from_spec, from_spec / steps);
+    EXPECT_GE(from_mesh, steps) << faces;
+    EXPECT_LE(from_mesh, 1.5 * steps) << faces;
+    EXPECT_GE(from_spec, steps) << faces;
+    EXPECT_LE(from_spec, 1.5 * steps) << faces;
+  }
+}
+
 TEST(ResourceEstimate, ScalesAsExpected) {
   const v1::RunSpec base = parse("{}");
   const ResourceEstimate e = estimate_resources(base, 16500, spec_area_m2(base));
+  std::printf("baseline: %.0f steps estimated (4,343 taken)\n", e.steps);
   // Baseline: the solver takes 4,343 steps to 800 ns (softshock-solve on examples/baseline.json);
-  // the estimate never undercounts and stays within 1.5x; ~50 MB result (docs/deploy.md), ~85 MB
+  // the estimate never undercounts and stays within 1.5x (1.09x; 0.72x without the step's fall
+  // after the passage, 0.998x without the sample landing); ~50 MB result (docs/deploy.md), ~85 MB
   // peak.
   EXPECT_GE(e.steps, 4343);
   EXPECT_LE(e.steps, 1.5 * 4343);
