@@ -15,6 +15,7 @@
 #include <thread>
 
 #include "grpc/health/v1/health.pb.h"
+#include "server/byte_size.hpp"
 #include "server/daemon_config.hpp"
 #include "server/http/http_frontend.hpp"
 #include "server/jobs/job_events.hpp"
@@ -269,8 +270,8 @@ Daemon::Daemon(DaemonConfig config) : impl_(std::make_unique<Impl>()) {
   log_info("catalogue:", counts.str().empty() ? " empty" : counts.str(), "; ", queued.size(),
            " job(s) queued");
   if (!d.catalogue->room_held()) {
-    log_warning("the disk lacks ", kCatalogueRoomBytes >> 20,
-                " MiB for the catalogue's reserved room; deletions on a full disk may fail "
+    log_warning("the disk lacks ", byte_size(static_cast<double>(kCatalogueRoomBytes)),
+                " for the catalogue's reserved room; deletions on a full disk may fail "
                 "until space is freed");
   }
 }

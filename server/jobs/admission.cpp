@@ -4,6 +4,7 @@
 #include <cstdio>
 #include <string>
 
+#include "server/byte_size.hpp"
 #include "solver/run_spec.hpp"
 
 namespace softshock::server {
@@ -13,16 +14,6 @@ namespace {
 std::string number(double x) {
   char buf[32];
   std::snprintf(buf, sizeof buf, "%.3g", x);
-  return buf;
-}
-
-std::string bytes(double b) {
-  char buf[32];
-  if (b >= (1ull << 30)) {
-    std::snprintf(buf, sizeof buf, "%.3g GiB", b / (1ull << 30));
-  } else {
-    std::snprintf(buf, sizeof buf, "%.3g MiB", b / (1ull << 20));
-  }
   return buf;
 }
 
@@ -46,24 +37,24 @@ void check_admission(const v1::RunSpec& spec, const ResourceEstimate& e,
     const double samples = std::floor(r.end_time() / r.history_interval()) + 1;
     throw SpecError(
         "run.history_interval",
-        "the run needs about " + bytes(e.memory_bytes) +
+        "the run needs about " + byte_size(e.memory_bytes) +
             " of memory (its mesh and "
             "state, and " +
             number(samples) + " history samples of " + std::to_string(r.modes() + 13) +
             " values each, from run.end_time / "
             "run.history_interval and run.modes), more than the daemon's max-job-memory "
             "= " +
-            bytes(limits.max_memory_bytes) +
+            byte_size(limits.max_memory_bytes) +
             ": raise run.history_interval, lower run.modes or geometry.target_elements");
   }
   if (!(e.disk_bytes <= limits.max_disk_bytes)) {
     throw SpecError("run.output_interval",
                     "the result file and the state kept for ExtendJob would take about " +
-                        bytes(e.disk_bytes) +
+                        byte_size(e.disk_bytes) +
                         " (field frames "
                         "every run.output_interval over run.end_time, each sized by "
                         "geometry.target_elements), more than the daemon's max-job-disk = " +
-                        bytes(limits.max_disk_bytes) +
+                        byte_size(limits.max_disk_bytes) +
                         ": raise run.output_interval (0 = no frames) or lower "
                         "geometry.target_elements");
   }

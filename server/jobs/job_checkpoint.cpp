@@ -6,22 +6,13 @@
 #include <system_error>
 #include <utility>
 
+#include "server/byte_size.hpp"
 #include "server/log.hpp"
 #include "solver/io/checkpoint_folder.hpp"
 
 namespace softshock::server {
 
 namespace fs = std::filesystem;
-
-namespace {
-
-std::string megabytes(double bytes) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.1f MB", bytes / 1e6);
-  return buf;
-}
-
-}  // namespace
 
 std::string checkpoint_dir(const std::string& job_dir) {
   return (fs::path(job_dir) / "checkpoint").string();
@@ -73,7 +64,7 @@ void JobCheckpointer::take(const RunState& state) {
   if (options_.free_bytes) {
     if (const double free = options_.free_bytes(); free < bytes + options_.min_free_bytes) {
       log_warning("job ", options_.job_id, ": no checkpoint at step ", state.steps, ": ",
-                  megabytes(free), " free, below the reserve plus the state's ", megabytes(bytes));
+                  byte_size(free), " free, below the reserve plus the state's ", byte_size(bytes));
       return;
     }
   }
@@ -105,7 +96,7 @@ void JobCheckpointer::take(const RunState& state) {
         std::snprintf(line, sizeof line,
                       "checkpoint at t = %.6g s, step %lld: %s, written %.3f s after it was taken",
                       time_s, static_cast<long long>(steps),
-                      megabytes(size_ec ? 0.0 : static_cast<double>(size)).c_str(),
+                      byte_size(size_ec ? 0.0 : static_cast<double>(size)).c_str(),
                       std::chrono::duration<double>(Clock::now() - taken_at).count());
         log_info("job ", id, ": ", line);
       });

@@ -14,6 +14,7 @@
 #include <optional>
 #include <utility>
 
+#include "server/byte_size.hpp"
 #include "server/jobs/job_checkpoint.hpp"
 #include "server/jobs/job_extension.hpp"
 #include "server/jobs/mesh_process.hpp"
@@ -31,12 +32,6 @@ namespace softshock::server {
 namespace fs = std::filesystem;
 
 namespace {
-
-std::string megabytes(double bytes) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.0f MB", bytes / 1e6);
-  return buf;
-}
 
 // Seconds in messages: "8e-09 s", not std::to_string's "0.000000 s".
 std::string seconds(double s) {
@@ -234,8 +229,8 @@ double JobRunner::free_bytes() const {
 
 void JobRunner::require_free_space() const {
   if (const double free = free_bytes(); free < config_.min_free_bytes) {
-    throw ResourceExhausted("the daemon's disk has " + megabytes(free) +
-                            " free, below its reserve of " + megabytes(config_.min_free_bytes) +
+    throw ResourceExhausted("the daemon's disk has " + byte_size(free) +
+                            " free, below its reserve of " + byte_size(config_.min_free_bytes) +
                             " (min-free-bytes): delete jobs or meshes to make room");
   }
 }
@@ -419,10 +414,10 @@ void JobRunner::run_job(const std::string& id, CancelToken& cancel) {
   const std::string dir = job_dir(id);
   if (const double free = free_bytes(); free < estimate.disk_bytes + config_.min_free_bytes) {
     finish(JobState::kFailed, reason::kDiskFull,
-           "the data folder has " + megabytes(free) +
+           "the data folder has " + byte_size(free) +
                " free; this job's result and the state it keeps need about " +
-               megabytes(estimate.disk_bytes) + " above a reserve of " +
-               megabytes(config_.min_free_bytes),
+               byte_size(estimate.disk_bytes) + " above a reserve of " +
+               byte_size(config_.min_free_bytes),
            "", nullptr);
     return;
   }
@@ -513,8 +508,8 @@ void JobRunner::run_job(const std::string& id, CancelToken& cancel) {
     if (!io_error.empty()) return;
     if (const double free = free_bytes(); free < frame_bytes + config_.min_free_bytes) {
       disk_full = true;
-      io_error = "the data folder has " + megabytes(free) + " free, below the reserve of " +
-                 megabytes(config_.min_free_bytes) + " plus a frame";
+      io_error = "the data folder has " + byte_size(free) + " free, below the reserve of " +
+                 byte_size(config_.min_free_bytes) + " plus a frame";
       cancel.request(StopReason::kInternal);
       return;
     }

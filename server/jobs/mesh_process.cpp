@@ -10,6 +10,7 @@
 #include <filesystem>
 #include <fstream>
 
+#include "server/byte_size.hpp"
 #include "server/jobs/process_io.hpp"
 #include "solver/mesh_cache.hpp"
 
@@ -192,7 +193,7 @@ MeshFileCheck check_mesh_file_in_child(const std::string& executable, const std:
     // SIGKILL: the CPU limit's hard stop, or the kernel's OOM killer.
     throw MeshingFailed("checking the mesh ran out of its limits (" +
                             std::to_string(limits.max_cpu_seconds) + " s of CPU time, " +
-                            std::to_string(limits.max_memory_bytes >> 20) + " MiB of memory)",
+                            byte_size(static_cast<double>(limits.max_memory_bytes)) + " of memory)",
                         true);
   }
   if (r.signal != 0) {

@@ -2,19 +2,10 @@
 
 #include <cstdio>
 
+#include "server/byte_size.hpp"
 #include "server/store/resource_exhausted.hpp"
 
 namespace softshock::server {
-
-namespace {
-
-std::string mib(std::int64_t bytes) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.1f MiB", static_cast<double>(bytes) / (1 << 20));
-  return buf;
-}
-
-}  // namespace
 
 void throw_queued_quota(const QuotaLimits& limits, const std::string& user, std::int64_t queued,
                         std::int64_t adding) {
@@ -38,9 +29,10 @@ void check_mesh_quota(const QuotaLimits& limits, const std::string& user, const 
   }
   if (of_user.bytes + bytes > limits.max_mesh_bytes_per_user) {
     throw ResourceExhausted(
-        "user " + user + "'s meshes take " + mib(of_user.bytes) + "; this one (" + mib(bytes) +
-        ") would pass max-mesh-bytes-per-user = " + mib(limits.max_mesh_bytes_per_user) +
-        free_some);
+        "user " + user + "'s meshes take " + byte_size(static_cast<double>(of_user.bytes)) +
+        "; this one (" + byte_size(static_cast<double>(bytes)) +
+        ") would pass max-mesh-bytes-per-user = " +
+        byte_size(static_cast<double>(limits.max_mesh_bytes_per_user)) + free_some);
   }
   const std::string ask = ", or ask an admin to delete unused meshes of other users";
   if (total.count + 1 > limits.max_meshes) {
@@ -50,8 +42,9 @@ void check_mesh_quota(const QuotaLimits& limits, const std::string& user, const 
   }
   if (total.bytes + bytes > limits.max_mesh_bytes) {
     throw ResourceExhausted(
-        "the daemon's uploaded meshes take " + mib(total.bytes) + "; this one (" + mib(bytes) +
-        ") would pass max-mesh-bytes = " + mib(limits.max_mesh_bytes) + free_some + ask);
+        "the daemon's uploaded meshes take " + byte_size(static_cast<double>(total.bytes)) +
+        "; this one (" + byte_size(static_cast<double>(bytes)) + ") would pass max-mesh-bytes = " +
+        byte_size(static_cast<double>(limits.max_mesh_bytes)) + free_some + ask);
   }
 }
 

@@ -17,6 +17,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "server/byte_size.hpp"
 #include "server/jobs/job_runner.hpp"
 #include "server/store/catalogue.hpp"
 #include "server/store/resource_exhausted.hpp"
@@ -63,12 +64,6 @@ std::string random_suffix() {
   std::lock_guard<std::mutex> lock(mutex);
   char buf[17];
   std::snprintf(buf, sizeof buf, "%016llx", static_cast<unsigned long long>(rng()));
-  return buf;
-}
-
-std::string megabytes(double bytes) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.0f MiB", bytes / (1 << 20));
   return buf;
 }
 
@@ -177,8 +172,8 @@ void MeshStore::Upload::append(std::string_view bytes) {
     const double free = store_.free_bytes();
     if (free - static_cast<double>(bytes.size()) < store_.limits_.min_free_bytes) {
       throw ResourceExhausted(
-          "the daemon's disk has " + megabytes(free) + " free, at its reserve of " +
-          megabytes(store_.limits_.min_free_bytes) + " (delete results or meshes to make room)");
+          "the daemon's disk has " + byte_size(free) + " free, at its reserve of " +
+          byte_size(store_.limits_.min_free_bytes) + " (delete results or meshes to make room)");
     }
   }
   std::size_t done = 0;
@@ -207,8 +202,8 @@ std::unique_ptr<MeshStore::Upload> MeshStore::begin_upload() {
   std::string path;
   try {
     if (const double free = free_bytes(); free < limits_.min_free_bytes) {
-      throw ResourceExhausted("the daemon's disk has " + megabytes(free) +
-                              " free, below its reserve of " + megabytes(limits_.min_free_bytes) +
+      throw ResourceExhausted("the daemon's disk has " + byte_size(free) +
+                              " free, below its reserve of " + byte_size(limits_.min_free_bytes) +
                               " (delete results or meshes to make room)");
     }
     path =

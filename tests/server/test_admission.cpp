@@ -13,6 +13,7 @@
 
 #include "../solver/scratch_dir.hpp"
 #include "daemon_fixture.hpp"
+#include "server/byte_size.hpp"
 #include "server/daemon.hpp"
 #include "server/daemon_config.hpp"
 #include "server/jobs/admission.hpp"
@@ -316,13 +317,25 @@ TEST(JobLimits, ARunPastItsWallLimitFailsWallTimeExceeded) {
   EXPECT_NE(done.error.find("wall time limit"), std::string::npos) << done.error;
 }
 
+// Every byte count in the daemon's messages (admission, the disk's reserve, checkpoints, mesh
+// quotas and limits) in one format: binary units, as the limits are set, three figures.
+TEST(ByteSize, BinaryUnitsToThreeSignificantFigures) {
+  EXPECT_EQ(byte_size(512), "512 B");
+  EXPECT_EQ(byte_size(20.3 * 1024), "20.3 KiB");
+  EXPECT_EQ(byte_size(100e6), "95.4 MiB");
+  EXPECT_EQ(byte_size(256.0 * (1 << 20)), "256 MiB");
+  EXPECT_EQ(byte_size(1023.4 * (1 << 20)), "1023 MiB");  // no exponent
+  EXPECT_EQ(byte_size(16.0 * (1ull << 30)), "16 GiB");
+  EXPECT_EQ(byte_size(1.5 * (1ull << 40)), "1.5 TiB");
+}
+
 TEST(JobLimits, AJobDoesNotStartWithoutRoomForItsResult) {
   RunnerConfig rc;
   rc.free_bytes = [](const std::string&) { return 100e6; };  // below the 256 MiB reserve
   const JobRecord done = run_one(rc, kTiny);
   EXPECT_EQ(done.state, JobState::kFailed);
   EXPECT_EQ(done.reason, "DISK_FULL");
-  EXPECT_NE(done.error.find("100 MB free"), std::string::npos) << done.error;
+  EXPECT_NE(done.error.find("95.4 MiB free"), std::string::npos) << done.error;
 }
 
 TEST(JobLimits, AJobStopsBeforeAFrameWouldEatIntoTheReserve) {

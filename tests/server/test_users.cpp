@@ -169,7 +169,7 @@ TEST(Quotas, RefusalsNameTheBoundAndTheWayBelowIt) {
             std::string::npos);
   EXPECT_NE(message([&] {
               check_mesh_quota(q, "alice", {1, 9 << 20}, {1, 9 << 20}, 2 << 20);
-            }).find("would pass max-mesh-bytes-per-user = 10.0 MiB"),
+            }).find("would pass max-mesh-bytes-per-user = 10 MiB"),
             std::string::npos);
   EXPECT_NE(message([&] {
               check_mesh_quota(q, "alice", {0, 0}, {5, 5}, 1);
@@ -177,7 +177,7 @@ TEST(Quotas, RefusalsNameTheBoundAndTheWayBelowIt) {
             std::string::npos);
   EXPECT_NE(message([&] {
               check_mesh_quota(q, "alice", {0, 0}, {4, 19 << 20}, 2 << 20);
-            }).find("would pass max-mesh-bytes = 20.0 MiB"),
+            }).find("would pass max-mesh-bytes = 20 MiB"),
             std::string::npos);
 }
 
