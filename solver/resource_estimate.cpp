@@ -66,13 +66,28 @@ constexpr double kStateBytesPerTetrahedron = 192;
 // after that passage b dt_rest, falling as 1 / (1 + s / tau) with the time s since the passage,
 // tau = m 2 L / c0, down to b dt_rest / F (the rim's undulations grow and squeeze its elements:
 // the step is near 0.35 dt_rest from ~550 to ~900 ns on the 90 um disk, and recovers to 0.6-0.9
-// by 1.6 us). Cylinders with BONDED faces have their own factors, b over dt_load and no fall (the
-// corners held by the glass keep the step at 1-3.7 dt_load after the passage).
+// by 1.6 us). Cylinders with BONDED faces have their own in- and out-going factors and their own
+// law after the passage (kBondedCorner).
 struct StepFactors {
   double inbound, outbound, after, fall, fall_limit;  // after: b; fall: m (0: none); limit: F
 };
 constexpr StepFactors kStepFactors2d{1.25, 1.25, 0.99, 3.5, 2.5},
-    kStepFactors3d{0.95, 2.0, 0.69, 6.75, 1.5}, kBondedStepFactors3d{0.775, 2.25, 1.37, 0, 1};
+    kStepFactors3d{0.95, 2.0, 0.69, 6.75, 1.5}, kBondedStepFactors3d{0.775, 2.25, 1, 0, 1};
+// BONDED cylinders after the passage: the step is set by the rim's element at a corner held by the
+// glass, sheared by the rim's outward motion (aspect ratios 10-33; run.max_aspect_ratio stops a
+// 32 Pa s pulse's run at 117 ns). The step is dt_rest / (1 + s0 e^(-s / tau)), s the time since
+// the passage, recovering over tau = m 2 R / c0, with the corner's shear
+//   s0 = k (I / 16 Pa s)^a (T / 20 um)^b (c0 dt_rest / 1.414 um)^c (R / 90 um)^d,
+// I = p t_pulse the pulse's impulse, T the layer's thickness, c0 dt_rest the smallest element's
+// size as the rest step sees it (finer meshes resolve more of the corner's shear; 1.414 um is the
+// default gel's c0 times 1 ns), R the radius. Fitted to the 36 bonded runs of
+// bench/step_estimate_cases.txt (thickness 10-75 um, radius 60-120 um, impulse 8-16 Pa s, 10k-105k
+// tetrahedra, 200 ns-1 us) to the smallest largest ratio of estimate over steps taken with none
+// below 1 (docs/reliability.md, "Time steps").
+struct CornerFactors {
+  double k, impulse, thickness, element, radius, recovery;
+};
+constexpr CornerFactors kBondedCorner{2.50, 2.05, 0.86, -0.52, -1.58, 2.86};
 // The meshers' smallest and 1st-percentile element altitudes over the mean element's (equilateral
 // triangle or regular tetrahedron of the mean area or volume), measured on their meshes
 // (docs/reliability.md) and rounded down: concentric rings 0.718 / 0.75 (4k-66k triangles),
@@ -275,16 +290,28 @@ StepEstimate estimate_steps(const v1::RunSpec& spec, const MeshAltitudes& altitu
   const double turn = std::min(end, pulse + crossing_s), passage = std::min(end, e.passage_s);
   const double inbound_dt = std::min(e.dt_rest_s, factors.inbound * e.dt_load_s);
   const double outbound_dt = std::min(e.dt_rest_s, factors.outbound * e.dt_load_s);
-  const double after_dt =
-      bonded ? std::min(e.dt_rest_s, factors.after * e.dt_load_s) : factors.after * e.dt_rest_s;
-  // After the passage, the integral of min(F, 1 + s / tau) / after_dt over s.
   const double after_s = std::max(0.0, end - passage);
-  const double fall_s = factors.fall * 2.0 * crossing_length / rest_wave_speed(spec);
-  const double falling_s = std::min(after_s, (factors.fall_limit - 1.0) * fall_s);
-  const double after_steps = (fall_s > 0 ? falling_s + 0.5 * falling_s * falling_s / fall_s +
-                                               (after_s - falling_s) * factors.fall_limit
-                                         : after_s) /
-                             after_dt;
+  const double c0 = rest_wave_speed(spec);
+  double after_steps;
+  if (bonded) {
+    // The integral of (1 + s0 e^(-s / tau)) / dt_rest over s.
+    const auto& k = kBondedCorner;
+    const double impulse_Pa_s = std::max(0.0, spec.load().pressure()) * pulse;
+    const double s0 = k.k * std::pow(impulse_Pa_s / 16.0, k.impulse) *
+                      std::pow(g.cylinder().thickness() / 20e-6, k.thickness) *
+                      std::pow(c0 * e.dt_rest_s / 1.414e-6, k.element) *
+                      std::pow(crossing_length / 90e-6, k.radius);
+    const double tau = k.recovery * 2.0 * crossing_length / c0;
+    after_steps = (after_s + s0 * tau * -std::expm1(-after_s / tau)) / e.dt_rest_s;
+  } else {
+    // The integral of min(F, 1 + s / tau) / (b dt_rest) over s.
+    const double fall_s = factors.fall * 2.0 * crossing_length / c0;
+    const double falling_s = std::min(after_s, (factors.fall_limit - 1.0) * fall_s);
+    after_steps = (fall_s > 0 ? falling_s + 0.5 * falling_s * falling_s / fall_s +
+                                    (after_s - falling_s) * factors.fall_limit
+                              : after_s) /
+                  (factors.after * e.dt_rest_s);
+  }
   e.steps = turn / inbound_dt + (passage - turn) / outbound_dt + after_steps;
   // The solver lands exactly on every history sample, on the pulse's end and on every frame: the
   // step before each is cut short, half a step on average where the step varies. That is up to
