@@ -6,6 +6,7 @@
 // --trace DIR also writes DIR/NAME.csv: per history sample the time, the stable step in force
 // and the interval's smallest (ns), for fitting the model's factors.
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <string>
 
@@ -24,6 +25,10 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "step_estimate_study: cannot read %s\n", argv[1]);
     return 2;
   }
+  if (trace && !std::filesystem::is_directory(argv[3])) {
+    std::fprintf(stderr, "step_estimate_study: --trace %s: no such folder\n", argv[3]);
+    return 2;
+  }
   std::printf(
       "| run | elements | steps taken | from the mesh | from the spec | dt_load, dt_rest (ns) | "
       "passage (ns) | status |\n");
@@ -37,17 +42,19 @@ int main(int argc, char** argv) {
     const double steps = static_cast<double>(result.steps);
     const double from_mesh = estimate_mesh_resources(spec, problem.mesh).steps;
     const double from_spec = estimate_spec_resources(spec).steps;
-    double crossing = crossing_length_m(spec);
-    if (std::isnan(crossing)) crossing = mesh_crossing_length_m(problem.mesh);
-    const StepEstimate parts =
-        estimate_steps(spec, mesh_altitudes(problem.mesh), problem.mesh.dimension(), crossing);
+    const StepEstimate parts = estimate_mesh_steps(spec, problem.mesh);
     std::printf("| %s | %zu | %.0f | %.2fx | %.2fx | %.3f, %.3f | %.1f | %s |\n", name.c_str(),
                 problem.mesh.element_count(), steps, from_mesh / steps, from_spec / steps,
                 parts.dt_load_s * 1e9, parts.dt_rest_s * 1e9, parts.passage_s * 1e9,
                 result.status == RunStatus::kCompleted ? "completed" : result.error.c_str());
     std::fflush(stdout);
     if (trace) {
-      std::ofstream csv(std::string(argv[3]) + "/" + name + ".csv");
+      const std::string path = std::string(argv[3]) + "/" + name + ".csv";
+      std::ofstream csv(path);
+      if (!csv) {
+        std::fprintf(stderr, "step_estimate_study: cannot write %s\n", path.c_str());
+        return 1;
+      }
       csv << "# dt_load_ns " << parts.dt_load_s * 1e9 << " dt_rest_ns " << parts.dt_rest_s * 1e9
           << " passage_ns " << parts.passage_s * 1e9 << " steps " << result.steps << "\n";
       csv << "time_ns,dt_ns,min_dt_ns\n";

@@ -3,10 +3,16 @@
 // (--max-job-disk 16G is 16 GiB).
 #pragma once
 
+#include <concepts>
 #include <string>
 
 namespace softshock::server {
 
 std::string byte_size(double bytes);
+// Any integer count (file sizes, limits): exact below 2^53 bytes, which is all of them.
+template <std::integral Bytes>
+std::string byte_size(Bytes bytes) {
+  return byte_size(static_cast<double>(bytes));
+}
 
 }  // namespace softshock::server

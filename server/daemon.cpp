@@ -270,7 +270,7 @@ Daemon::Daemon(DaemonConfig config) : impl_(std::make_unique<Impl>()) {
   log_info("catalogue:", counts.str().empty() ? " empty" : counts.str(), "; ", queued.size(),
            " job(s) queued");
   if (!d.catalogue->room_held()) {
-    log_warning("the disk lacks ", byte_size(static_cast<double>(kCatalogueRoomBytes)),
+    log_warning("the disk lacks ", byte_size(kCatalogueRoomBytes),
                 " for the catalogue's reserved room; deletions on a full disk may fail "
                 "until space is freed");
   }

@@ -402,11 +402,24 @@ ResourceEstimate estimate_spec_resources(const v1::RunSpec& spec) {
   return {nan, nan, nan, nan, nan};
 }
 
+namespace {
+
+double crossing_length_of(const v1::RunSpec& spec, const Mesh& mesh) {
+  const double crossing = crossing_length_m(spec);
+  return std::isnan(crossing) ? mesh_crossing_length_m(mesh) : crossing;
+}
+
+}  // namespace
+
+StepEstimate estimate_mesh_steps(const v1::RunSpec& spec, const Mesh& mesh) {
+  return estimate_steps(spec, mesh_altitudes(mesh), mesh.dimension(),
+                        crossing_length_of(spec, mesh));
+}
+
 ResourceEstimate estimate_mesh_resources(const v1::RunSpec& spec, const Mesh& mesh) {
   const double elements = static_cast<double>(mesh.element_count());
   const MeshAltitudes altitudes = mesh_altitudes(mesh);
-  double crossing = crossing_length_m(spec);
-  if (std::isnan(crossing)) crossing = mesh_crossing_length_m(mesh);
+  const double crossing = crossing_length_of(spec, mesh);
   return mesh.dimension() == 3
              ? estimate_resources_3d(spec, elements, mesh_volume(mesh), altitudes, crossing)
              : estimate_resources(spec, elements, mesh_area(mesh), altitudes, crossing);

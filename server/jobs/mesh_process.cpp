@@ -193,7 +193,7 @@ MeshFileCheck check_mesh_file_in_child(const std::string& executable, const std:
     // SIGKILL: the CPU limit's hard stop, or the kernel's OOM killer.
     throw MeshingFailed("checking the mesh ran out of its limits (" +
                             std::to_string(limits.max_cpu_seconds) + " s of CPU time, " +
-                            byte_size(static_cast<double>(limits.max_memory_bytes)) + " of memory)",
+                            byte_size(limits.max_memory_bytes) + " of memory)",
                         true);
   }
   if (r.signal != 0) {

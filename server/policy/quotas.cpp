@@ -28,11 +28,10 @@ void check_mesh_quota(const QuotaLimits& limits, const std::string& user, const 
                             std::to_string(limits.max_meshes_per_user) + " allows" + free_some);
   }
   if (of_user.bytes + bytes > limits.max_mesh_bytes_per_user) {
-    throw ResourceExhausted(
-        "user " + user + "'s meshes take " + byte_size(static_cast<double>(of_user.bytes)) +
-        "; this one (" + byte_size(static_cast<double>(bytes)) +
-        ") would pass max-mesh-bytes-per-user = " +
-        byte_size(static_cast<double>(limits.max_mesh_bytes_per_user)) + free_some);
+    throw ResourceExhausted("user " + user + "'s meshes take " + byte_size(of_user.bytes) +
+                            "; this one (" + byte_size(bytes) +
+                            ") would pass max-mesh-bytes-per-user = " +
+                            byte_size(limits.max_mesh_bytes_per_user) + free_some);
   }
   const std::string ask = ", or ask an admin to delete unused meshes of other users";
   if (total.count + 1 > limits.max_meshes) {
@@ -41,10 +40,9 @@ void check_mesh_quota(const QuotaLimits& limits, const std::string& user, const 
                             std::to_string(limits.max_meshes) + " allows" + free_some + ask);
   }
   if (total.bytes + bytes > limits.max_mesh_bytes) {
-    throw ResourceExhausted(
-        "the daemon's uploaded meshes take " + byte_size(static_cast<double>(total.bytes)) +
-        "; this one (" + byte_size(static_cast<double>(bytes)) + ") would pass max-mesh-bytes = " +
-        byte_size(static_cast<double>(limits.max_mesh_bytes)) + free_some + ask);
+    throw ResourceExhausted("the daemon's uploaded meshes take " + byte_size(total.bytes) +
+                            "; this one (" + byte_size(bytes) + ") would pass max-mesh-bytes = " +
+                            byte_size(limits.max_mesh_bytes) + free_some + ask);
   }
 }
 
