@@ -10,8 +10,9 @@
 //   correct            a+ = M^-1 f, v+ = v* + dt/2 a+
 //   mass_blend_*       the mass blend's element pass and node correction
 // With phase-field damage (Problem::damage, damage/damage_pass.hpp) the damage is updated every
-// N_d steps before the predictor, the nodal state degrades the damaged nodes' tension, and the
-// element forces take off the damaged elements' degraded share; without it none of that runs.
+// N_d steps at the predicted configuration (after the predictor and, with the nodal pressure, the
+// nodal J), the nodal state then degrades the damaged nodes' tension, and the element forces take
+// off the damaged elements' degraded share; without it none of that runs.
 // With threads, each owns a fixed range of nodes and of elements and adds its elements'
 // contributions into its own nodal arrays, summed in thread order: results depend on the thread
 // count only. The run loop (simulation.cpp) calls evaluate() once a step.
@@ -97,6 +98,8 @@ class ExplicitStep {
   void apply_follower_pressure(double t);
   void nodal_volumes(int tid);
   void nodal_state(int tid);
+  void degraded_nodal_state(int tid);
+  void update_damage();
   void stabilization(int tid);
   void stabilized_state(int tid);
   void element_forces(int tid);

@@ -104,7 +104,7 @@ struct Damage {
   double epsilon_f_Pa = 2e6;
   double fracture_energy_J_m2 = 10.0;  // model 2: G (G_c for a converged sharp crack)
   double zeta_Pa_s = 0.0;              // model 1: the damage viscosity (0: rate independent)
-  int update_every = 4;                // N_d: mechanical steps per damage update
+  int update_every = 1;                // N_d: mechanical steps per damage update
   DamageLinearSolver linear_solver = DamageLinearSolver::kAuto;
   bool enabled() const { return model != DamageModel::kNone; }
 };

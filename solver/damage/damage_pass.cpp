@@ -83,12 +83,13 @@ void DamagePass<dim>::update(Positions x, const double* nodal_j) {
   // The history field: the largest driving energy so far (irreversible by construction).
   // Each element's energy that the degradation acts on (the element's own): W_dev + w W_vol+(J_e).
   std::vector<double> degradable(ne);
-  bool driven = !damaged_nodes_.empty();
+  bool driven = !damaged_nodes_.empty(), grew = false;
   for (std::size_t e = 0; e < ne; ++e) {
     const ElementEnergy w = element_energy(e, x, nodal_tensile);
     degradable[e] = w.deviatoric + w.own_tensile;
     const double psi_plus = w.deviatoric + w.own_tensile + w.nodal_tensile;
     const double h = driving_energy(psi_plus, coefficients_.threshold_Pa);
+    grew = grew || h > h_[e];
     h_[e] = std::max(h_[e], h);
     driven = driven || h_[e] > 0;
   }
@@ -96,6 +97,9 @@ void DamagePass<dim>::update(Positions x, const double* nodal_j) {
   steps_since_update_ = 0, time_since_update_ = 0;
   // Nothing drives damage and there is none (model 1 below its threshold): d stays 0 exactly.
   if (!driven) return;
+  // No H grew and no rate term (zeta = 0): the same system as the last solve, whose projected
+  // solution d already is -- the solve would return it again.
+  if (!grew && coefficients_.zeta_Pa_s == 0 && solves_ > 0) return;
   solver_->solve(h_, dt, d_);
   ++solves_;
 

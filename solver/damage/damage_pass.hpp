@@ -2,8 +2,8 @@
 // tetrahedra (dim 3): the phase-field damage staggered with the mechanics (docs/model.md,
 // "Damage"). It holds the nodal damage d, each element's history field H and the degradations,
 // and has three parts:
-//   update            every N_d mechanical steps, before the step's predictor: the tension-only
-//                     driver psi+ per element from the current state, H = max(H, <psi+ - thr>),
+//   update            every N_d mechanical steps, at the step's predicted configuration: the
+//                     tension-only driver psi+ per element, H = max(H, <psi+ - thr>),
 //                     one implicit damage step (damage_solver.hpp), the new degradations, and the
 //                     stored energy that the damage released at that fixed configuration booked
 //                     as dissipated (so the energy balance closes with it);
@@ -41,8 +41,9 @@ class DamagePass {
   // degraded node by node); null for plain P1.
   DamagePass(const Problem& problem, const double* nodal_volume0);
 
-  // The staggering: advance() after every mechanical step of dt; due() once N_d steps have passed
-  // since the last update; update() then, with the state at the start of the next step.
+  // The staggering: advance() at the start of every mechanical step of dt; due() once N_d steps
+  // (this one included) have passed since the last update; update() then, with this step's
+  // predicted positions -- those its forces are evaluated at.
   void advance(double dt) { ++steps_since_update_, time_since_update_ += dt; }
   bool due() const { return steps_since_update_ >= update_every_; }
   // nodal_j: the average nodal pressure's J_a at these positions (null for plain P1).
