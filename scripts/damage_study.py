@@ -1,7 +1,7 @@
 #!/usr/bin/python3
 """The disk with phase-field damage (docs/verification.md, "Phase-field damage"): the default
 baseline (R0 = 90 um, 2 GPa for 8 ns) with each damage model at its defaults (l = eps = 5 um,
-eps_f = 2 MPa, G = 10 J/m^2, N_d = 4).
+eps_f = 2 MPa, G = 10 J/m^2).
 
 Part 0, the load's release without damage (to 16 ns on 4k and the meshes below): the largest
 tension and J beyond 60 um and where, against the outermost element's centroid radius.
@@ -16,11 +16,18 @@ Part 2, the late answer (to --long-end, default 400 ns) on --long-mesh (default 
 damage and each model: the centre's damaged zone against time, A-bar(t), the dominant rim mode,
 the rim's reflections; docs/img/damage_zone.png and docs/img/damage_abar.png.
 
+Part 3, the update's interval (model 1 to 100 ns on --interval-sizes, default 66k, 150k, 264k):
+N_d = 1, 2, 4 on each, and N_d = 1 at half the default cfl (half the interval in time) on all but
+the finest: the outer ring's damage (elements beyond 45 um) at 64 / 72 / 100 ns and its inner
+edge, the centre zone and the damage dissipation at 100 ns, the mean step; --jobs runs at once.
+Parts 1 and 2 run at N_d = 4 (DOCUMENTED_UPDATE_EVERY), as their tables were made.
+
 Prints markdown tables and writes --out/figures.json.
 
   scripts/damage_study.py [--solver build/solver/softshock-solve] [--out DIR] [--threads 2]
       [--sizes 16500,66000,150000,264000] [--short-end 60e-9] [--eval-time 56e-9] [--long-mesh 66000]
-      [--long-end 400e-9] [--img docs/img] [--skip-long]
+      [--long-end 400e-9] [--img docs/img] [--skip-long] [--interval-sizes 66000,150000,264000]
+      [--jobs 2] [--only-interval]
 """
 import argparse
 import json
@@ -33,13 +40,20 @@ from study_runs import run
 
 RIM_RING_M = 80e-6  # the outer ring where the release's overshoot sits (r > 80 um)
 CENTRE_M = 60e-6  # the centre's damaged zone: damaged nodes within 60 um of the centre
+OUTER_RING_M = 45e-6  # part 3: the outer ring's damage, elements beyond 45 um
 
 
-def spec(elements, end, model, output_interval):
+# Parts 1 and 2 as documented: N_d = 4, the default until 2026-12-06 (part 3 measures N_d).
+DOCUMENTED_UPDATE_EVERY = 4
+
+
+def spec(elements, end, model, output_interval, update_every=DOCUMENTED_UPDATE_EVERY, cfl=None):
     s = {"geometry": {"target_elements": elements},
          "run": {"end_time": end, "output_interval": output_interval}}
+    if cfl is not None:
+        s["run"]["cfl"] = cfl
     if model != "NONE":
-        s["damage"] = {"model": model}
+        s["damage"] = {"model": model, "update_every": update_every}
     return s
 
 
@@ -183,6 +197,61 @@ def long_study(a):
     return runs
 
 
+def outer_ring(out, times):
+    """The outer ring's damage (elements whose mean d >= 1/2 with centroids beyond OUTER_RING_M):
+    its reference area at each of `times`, its inner edge at the last frame -- the first 1 um
+    ring out from OUTER_RING_M in which at least half the elements are damaged -- and the centre
+    zone's area (damaged elements within OUTER_RING_M) at the last frame."""
+    with h5py.File(os.path.join(out, "result.h5"), "r") as f:
+        nodes, tri = f["mesh/nodes"][:], f["mesh/triangles"][:]
+        centroid = nodes[tri].mean(axis=1)
+        rc = np.hypot(centroid[:, 0], centroid[:, 1])
+        e1, e2 = nodes[tri[:, 1]] - nodes[tri[:, 0]], nodes[tri[:, 2]] - nodes[tri[:, 0]]
+        area = 0.5 * np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])
+        frames = {float(f["fields"][k].attrs["time"]): k for k in f["fields"]}
+        ring = rc > OUTER_RING_M
+        areas, damaged = [], None
+        for t in times:
+            name = frames[min(frames, key=lambda x: abs(x - t))]
+            damaged = f["fields"][name]["damage"][:].ravel()[tri].mean(axis=1) >= 0.5
+            areas.append(float(area[damaged & ring].sum()))
+    rings = np.floor(rc / 1e-6).astype(int)
+    count = np.bincount(rings)
+    hits = np.bincount(rings, weights=(damaged & ring).astype(float), minlength=count.size)
+    edge = next((k for k in range(int(OUTER_RING_M / 1e-6), count.size)
+                 if count[k] and hits[k] >= 0.5 * count[k]), -1)
+    return areas, edge * 1e-6, float(area[damaged & ~ring].sum())
+
+
+def interval_study(a):
+    """Part 3: the update's interval, model 1 to 100 ns on --interval-sizes: N_d = 1, 2, 4, and N_d
+    = 1 at half the default cfl (half the interval in time) on all but the finest."""
+    from concurrent.futures import ThreadPoolExecutor
+    cases = [(n, k, None) for n in a.interval_sizes for k in (1, 2, 4)]
+    cases += [(n, 1, 0.375) for n in a.interval_sizes[:-1]]
+
+    def one(case):
+        n, k, cfl = case
+        out = os.path.join(a.out, f"interval_{n}_nd{k}" + (f"_cfl{cfl}" if cfl else ""))
+        s = run(a.solver, spec(n, 100e-9, "TALAMINI", 2e-9, k, cfl), out, 1)
+        h = history(out)
+        areas, edge, centre = outer_ring(out, (64e-9, 72e-9, 100e-9))
+        late = (h["time"] >= 56e-9) & (h["time"] <= 100e-9)
+        return {"elements": s["elements"], "update_every": k, "cfl": cfl or 0.75,
+                "steps": s["steps"], "solves": s.get("damage_solves", 0),
+                "minutes": round(s["seconds"] / 60, 2),
+                "outer_64_72_100_um2": "/".join(f"{x * 1e12:,.0f}" for x in areas),
+                "outer_edge_100_um": edge * 1e6, "centre_area_100_um2": centre * 1e12,
+                "dissipation_100_mJ_per_m": float(h["damage_dissipation"][-1]) * 1e3,
+                "mean_dt_56_100_ns": float(np.mean(h["dt"][late])) * 1e9}
+
+    with ThreadPoolExecutor(a.jobs) as pool:
+        rows = list(pool.map(one, sorted(cases, key=lambda c: -c[0] * (2 if c[2] else 1) / c[1] ** 0.7)))
+    for r in rows:
+        print(json.dumps(r), flush=True)
+    return rows
+
+
 def pictures(runs, img):
     import matplotlib
     matplotlib.use("Agg")
@@ -235,12 +304,21 @@ def main():
     p.add_argument("--long-end", type=float, default=400e-9)
     p.add_argument("--img", default="docs/img")
     p.add_argument("--skip-long", action="store_true")
+    p.add_argument("--interval-sizes", default="66000,150000,264000")
+    p.add_argument("--jobs", type=int, default=2, help="part 3's runs at once (one thread each)")
+    p.add_argument("--only-interval", action="store_true", help="part 3 alone")
     a = p.parse_args()
     a.sizes = [int(x) for x in a.sizes.split(",")]
+    a.interval_sizes = [int(x) for x in a.interval_sizes.split(",")]
+    if a.only_interval:
+        table(interval_study(a))
+        return
     figures = {"release": release_study(a)}
     table(figures["release"])
     figures["short"] = short_study(a)
     table(figures["short"])
+    figures["interval"] = interval_study(a)
+    table(figures["interval"])
     if not a.skip_long:
         runs = long_study(a)
         pictures(runs, a.img)
