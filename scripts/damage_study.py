@@ -72,6 +72,15 @@ def zone_radius(r, inside):
     return count.size * 1e-6
 
 
+def reference_mesh(f):
+    """The result's reference mesh: node radii, triangles, centroid radii and areas."""
+    nodes, tri = f["mesh/nodes"][:], f["mesh/triangles"][:]
+    centroid = nodes[tri].mean(axis=1)
+    e1, e2 = nodes[tri[:, 1]] - nodes[tri[:, 0]], nodes[tri[:, 2]] - nodes[tri[:, 0]]
+    return (np.hypot(nodes[:, 0], nodes[:, 1]), tri, np.hypot(centroid[:, 0], centroid[:, 1]),
+            0.5 * np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]))
+
+
 def zones(out):
     """Per frame: time, the outer ring's largest d, the centre zone's radius (zone_radius of the
     nodes with d >= 1/2), the number of such nodes within CENTRE_M, the opened cavity's radius
@@ -79,13 +88,7 @@ def zones(out):
     of elements with mean d >= 1/2 within CENTRE_M and beyond RIM_RING_M."""
     rows = []
     with h5py.File(os.path.join(out, "result.h5"), "r") as f:
-        nodes = f["mesh/nodes"][:]
-        r = np.hypot(nodes[:, 0], nodes[:, 1])
-        tri = f["mesh/triangles"][:]
-        centroid = nodes[tri].mean(axis=1)
-        rc = np.hypot(centroid[:, 0], centroid[:, 1])
-        e1, e2 = nodes[tri[:, 1]] - nodes[tri[:, 0]], nodes[tri[:, 2]] - nodes[tri[:, 0]]
-        area = 0.5 * np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])
+        r, tri, rc, area = reference_mesh(f)
         for name in sorted(f["fields"].keys()):
             g = f["fields"][name]
             if "damage" not in g:
@@ -206,11 +209,7 @@ def outer_ring(out, times):
     ring out from OUTER_RING_M in which at least half the elements are damaged -- and the centre
     zone's area (damaged elements within OUTER_RING_M) at the last frame."""
     with h5py.File(os.path.join(out, "result.h5"), "r") as f:
-        nodes, tri = f["mesh/nodes"][:], f["mesh/triangles"][:]
-        centroid = nodes[tri].mean(axis=1)
-        rc = np.hypot(centroid[:, 0], centroid[:, 1])
-        e1, e2 = nodes[tri[:, 1]] - nodes[tri[:, 0]], nodes[tri[:, 2]] - nodes[tri[:, 0]]
-        area = 0.5 * np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])
+        _, tri, rc, area = reference_mesh(f)
         frames = {float(f["fields"][k].attrs["time"]): k for k in f["fields"]}
         ring = rc > OUTER_RING_M
         areas, damaged = [], None
